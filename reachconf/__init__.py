@@ -18,6 +18,7 @@ from reachconf.errors import (
     ConformanceError,
     DataError,
     ModelError,
+    OptionsError,
     ReachconfError,
     ReachError,
     SetError,
@@ -26,13 +27,15 @@ from reachconf.errors import (
 
 __version__ = "0.1.0"
 
+# ``reach`` is both a module and its main function: import it eagerly so that
+# the function, not the submodule, is the package attribute.
+from reachconf.reach import ReachOptions, reach  # noqa: E402
+
 # public name -> module that defines it
 _LAZY = {
     "Interval": "reachconf.sets",
     "Zonotope": "reachconf.sets",
     "Model": "reachconf.model",
-    "reach": "reachconf.reach",
-    "ReachOptions": "reachconf.reach",
     "ReachTube": "reachconf.tube",
     "models": "reachconf.models",
     "load_suite": "reachconf.io",
@@ -59,6 +62,9 @@ __all__ = [
     "DataError",
     "ConformanceError",
     "SolverError",
+    "OptionsError",
+    "reach",
+    "ReachOptions",
     *_LAZY,
 ]
 

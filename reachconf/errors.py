@@ -15,6 +15,7 @@ __all__ = [
     "DataError",
     "ConformanceError",
     "SolverError",
+    "OptionsError",
 ]
 
 
@@ -60,3 +61,7 @@ class ConformanceError(ReachconfError, RuntimeError):
 
 class SolverError(ReachconfError, RuntimeError):
     """An optimisation solver failed or returned an infeasible/inaccurate result."""
+
+
+class OptionsError(ReachconfError, ValueError):
+    """An options object (reach, conformance, synthesis) has an invalid value."""
