@@ -1,0 +1,437 @@
+"""Reachability analysis: ``reach(model, X0, times, inputs, W, options) -> ReachTube``.
+
+Linear and nonlinear systems share one engine (:mod:`reachconf_kernels.nonlinear`):
+a linear model has a zero Hessian, so its abstraction error is exactly zero
+and each step is the linear-system step with uncertain inputs (Taylor series
+of the exponential with remainder and the time-interval correction terms).
+Nonlinear models use conservative linearisation (``algorithm="lin"``,
+tensor order 2 or 3) or conservative polynomialisation (``"poly"``, tensor
+order 3), with CORA's iterative abstraction-error bound.  When the error
+cannot be bounded the set is split (up to ``max_splits`` times); after that a
+:class:`~reachconf.ReachError` says when, in which state, through which error
+term the set exploded and what to try.
+
+All sets are sound enclosures: no trajectory of ``x' = f(x, u, w)`` with
+``x(t0) in X0`` and any (measurable) ``w(t) in W`` leaves them.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from reachconf.errors import OptionsError, ReachError, SetError
+from reachconf.sets import Interval, Zonotope
+
+__all__ = ["ReachOptions", "reach"]
+
+_ALGORITHMS = ("lin", "poly")
+_REDUCTIONS = ("girard", "pca")
+_SPLITS = ("generator", "box")
+_STATUS = {
+    1: "a guarded interval operation failed (division by an interval containing 0, log/sqrt of a "
+    "non-positive interval or tan across a pole)",
+    2: "the set or its error bound became NaN/inf",
+    3: "the abstraction-error bound did not converge (the set grows faster than the linearisation "
+    "can follow)",
+    4: "the abstraction error exceeded options.max_error",
+}
+_TERMS = {
+    0: "second-order Lagrange remainder (interval Hessian over the set)",
+    1: "quadratic term at the linearisation point (quad_map of the Hessian)",
+    2: "third-order Lagrange remainder (interval third-order tensor over the set)",
+    3: "static quadratic term of 'poly'",
+}
+
+
+@dataclass(frozen=True)
+class ReachOptions:
+    """Options of :func:`reach` (CORA's reach options, typed).
+
+    Parameters
+    ----------
+    algorithm : {"lin", "poly"}, default "lin"
+        Conservative linearisation or polynomialisation (Althoff 2008/2013).
+    time_step : float or None, default None
+        Largest integration step.  ``None``: one hundredth of the horizon,
+        capped by the spacing of the sample times.
+    taylor_terms : int, default 4
+        Taylor terms of the matrix exponential (``r``); the remainder is bounded.
+    zonotope_order : float, default 20
+        Order (generators / dimension) the reachable sets are reduced to.
+    intermediate_order : float, default 20
+        Order of intermediate sets (time-interval set before the error loop,
+        error sets).
+    error_order : float, default 5
+        Order the set is reduced to before ``quad_map`` (tensor order 3).
+    tensor_order : int or None, default None
+        2 (interval Hessian) or 3 (Hessian at the point + interval third-order
+        tensor).  ``None``: 2 for "lin", 3 for "poly".
+    reduction : {"girard", "pca"}, default "girard"
+        Order-reduction method.
+    max_splits : int, default 8
+        How many times a set may be split when its error cannot be bounded.
+    split_method : {"generator", "box"}, default "generator"
+        "generator" halves the zonotope exactly along its generator of largest
+        normalised length; "box" halves the interval hull along its widest
+        normalised axis (CORA).
+    max_error : float or sequence of float, default inf
+        Abstraction-error bound per state above which the set is split.
+    max_error_iterations : int, default 25
+        Iterations of the abstraction-error fixed point before giving up.
+    rounding : float, default 1e-13
+        Relative allowance added per step for floating-point rounding of the
+        zonotope arithmetic.
+    progress : bool or None, default None
+        Show a tqdm bar; ``None``: when stderr is a terminal and the run is long.
+    """
+
+    algorithm: str = "lin"
+    time_step: float | None = None
+    taylor_terms: int = 4
+    zonotope_order: float = 20.0
+    intermediate_order: float = 20.0
+    error_order: float = 5.0
+    tensor_order: int | None = None
+    reduction: str = "girard"
+    max_splits: int = 8
+    split_method: str = "generator"
+    max_error: float | tuple = math.inf
+    max_error_iterations: int = 25
+    rounding: float = 1e-13
+    progress: bool | None = None
+
+    def __post_init__(self):
+        if self.algorithm not in _ALGORITHMS:
+            raise OptionsError(f"ReachOptions.algorithm must be one of {_ALGORITHMS}, got {self.algorithm!r}")
+        if self.time_step is not None and not (math.isfinite(self.time_step) and self.time_step > 0):
+            raise OptionsError(f"ReachOptions.time_step must be a positive number, got {self.time_step!r}")
+        if not (isinstance(self.taylor_terms, (int, np.integer)) and 1 <= self.taylor_terms <= 20):
+            raise OptionsError(f"ReachOptions.taylor_terms must be an integer in 1..20, got {self.taylor_terms!r}")
+        for name in ("zonotope_order", "intermediate_order", "error_order"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float, np.number)) and value >= 1 and math.isfinite(value)):
+                raise OptionsError(f"ReachOptions.{name} must be a number >= 1, got {value!r}")
+        to = self.effective_tensor_order
+        if to not in (2, 3):
+            raise OptionsError(f"ReachOptions.tensor_order must be 2 or 3, got {self.tensor_order!r}")
+        if self.algorithm == "poly" and to != 3:
+            raise OptionsError("ReachOptions: algorithm 'poly' needs tensor_order=3")
+        if self.reduction not in _REDUCTIONS:
+            raise OptionsError(f"ReachOptions.reduction must be one of {_REDUCTIONS}, got {self.reduction!r}")
+        if self.split_method not in _SPLITS:
+            raise OptionsError(f"ReachOptions.split_method must be one of {_SPLITS}, got {self.split_method!r}")
+        if not (isinstance(self.max_splits, (int, np.integer)) and self.max_splits >= 0):
+            raise OptionsError(f"ReachOptions.max_splits must be a non-negative integer, got {self.max_splits!r}")
+        if not (isinstance(self.max_error_iterations, (int, np.integer)) and self.max_error_iterations >= 2):
+            raise OptionsError("ReachOptions.max_error_iterations must be an integer >= 2")
+        me = np.atleast_1d(np.asarray(self.max_error, dtype=float))
+        if np.any(np.isnan(me)) or np.any(me <= 0):
+            raise OptionsError("ReachOptions.max_error must be positive (inf allowed)")
+        if not (0 <= self.rounding < 1e-6):
+            raise OptionsError("ReachOptions.rounding must be in [0, 1e-6)")
+
+    @property
+    def effective_tensor_order(self) -> int:
+        if self.tensor_order is None:
+            return 3 if self.algorithm == "poly" else 2
+        return int(self.tensor_order)
+
+
+# ---------------------------------------------------------------------------
+# argument handling
+# ---------------------------------------------------------------------------
+def _as_zonotope(value, dim: int, name: str) -> Zonotope:
+    if isinstance(value, Zonotope):
+        Z = value
+    elif isinstance(value, Interval):
+        Z = value.to_zonotope()
+    else:
+        raise SetError(f"{name} must be a reachconf Interval or Zonotope, got {type(value).__name__}")
+    if Z.dim != dim:
+        raise SetError(f"{name} has dimension {Z.dim}, the model needs {dim}")
+    return Z
+
+
+def _sample_times(times) -> np.ndarray:
+    arr = np.asarray(times, dtype=float)
+    if arr.ndim == 0:
+        if not (math.isfinite(float(arr)) and float(arr) > 0):
+            raise ReachError(f"times: the final time must be a positive number, got {times!r}")
+        return np.array([0.0, float(arr)])
+    arr = arr.reshape(-1)
+    if arr.size < 2:
+        raise ReachError("times must hold at least two sample times (or be a final time)")
+    if not np.all(np.isfinite(arr)):
+        raise ReachError("times contains NaN or inf")
+    bad = np.nonzero(np.diff(arr) <= 0)[0]
+    if bad.size:
+        raise ReachError(f"times must be strictly increasing; times[{bad[0] + 1}] = {arr[bad[0] + 1]} "
+                         f"<= times[{bad[0]}] = {arr[bad[0]]}")
+    return arr
+
+
+def _step_grid(samples: np.ndarray, time_step: float | None, scalar_horizon: bool):
+    """Sub-steps of every sample interval: (dts, t_start, sample_of_step, step_of_sample)."""
+    horizon = samples[-1] - samples[0]
+    if time_step is None:
+        time_step = horizon / 100.0 if scalar_horizon else min(horizon / 100.0, float(np.min(np.diff(samples))))
+    counts = np.maximum(1, np.ceil(np.diff(samples) / time_step - 1e-9).astype(np.int64))
+    dts = np.repeat(np.diff(samples) / counts, counts)
+    sample_of_step = np.repeat(np.arange(samples.size - 1), counts)
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    t_start = np.repeat(samples[:-1], counts) + (np.arange(dts.size) - offsets[sample_of_step]) * dts
+    return dts, t_start, sample_of_step, offsets
+
+
+def _input_table(model, inputs, samples, t_start, sample_of_step, per_step: bool) -> np.ndarray:
+    """Known input of every step, shape (S, m)."""
+    m = model.m
+    S = t_start.size
+    if m == 0:
+        if inputs is not None and not callable(inputs) and np.size(inputs) != 0:
+            raise ReachError(f"model {model.name!r} has no inputs, but inputs were given")
+        return np.zeros((S, 0))
+    if inputs is None:
+        raise ReachError(f"model {model.name!r} needs inputs {model.input_names}; pass inputs=")
+    if callable(inputs):
+        at = t_start if per_step else samples[sample_of_step]
+        try:
+            U = np.array([np.asarray(inputs(float(t)), dtype=float).reshape(-1) for t in at])
+        except (TypeError, ValueError) as exc:
+            raise ReachError(f"inputs(t) failed: {exc}") from None
+        if U.shape != (S, m):
+            raise ReachError(f"inputs(t) must return {m} values ({model.input_names}), got shape {U.shape[1:]}")
+    else:
+        U = np.asarray(inputs, dtype=float)
+        if U.ndim == 1 and U.size == m:
+            U = np.tile(U, (samples.size, 1))
+        elif U.ndim == 1 and m == 1:
+            U = U[:, None]
+        if U.ndim != 2 or U.shape[1] != m or U.shape[0] not in (samples.size, samples.size - 1):
+            raise ReachError(
+                f"inputs must have shape ({samples.size}, {m}) (one row per sample time, columns "
+                f"{model.input_names}), got {np.shape(inputs)}"
+            )
+        U = U[sample_of_step]
+    if not np.all(np.isfinite(U)):
+        row = int(np.nonzero(~np.all(np.isfinite(U), axis=1))[0][0])
+        raise ReachError(f"inputs contain NaN or inf (step {row})")
+    return np.ascontiguousarray(U)
+
+
+def _progress(enabled, total, desc):
+    if enabled is None:
+        enabled = sys.stderr.isatty() and total > 2000
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit="step", leave=False)
+
+
+# ---------------------------------------------------------------------------
+# splitting
+# ---------------------------------------------------------------------------
+def _split(c: np.ndarray, G: np.ndarray, method: str):
+    """Two zonotopes whose union contains Z(c, G)."""
+    from reachconf_kernels import zonotope as zk
+
+    if method == "box" or G.shape[1] == 0:
+        lo, hi = zk.interval_hull(c, G)
+        width = hi - lo
+        scale = np.where(width > 0, width, 1.0)
+        axis = int(np.argmax(width / scale.max())) if method == "box" else int(np.argmax(width))
+        cc, GG = zk.from_interval(lo, hi)
+        # generator along the chosen axis
+        j = int(np.argmax(np.abs(GG[axis])))
+        g = GG[:, j].copy()
+    else:
+        lo, hi = zk.interval_hull(c, G)
+        width = np.where(hi - lo > 0, hi - lo, 1.0)
+        normalised = np.abs(G) / width[:, None]
+        j = int(np.argmax(normalised.sum(axis=0)))
+        cc, GG, g = c, G, G[:, j].copy()
+    G_half = GG.copy()
+    G_half[:, j] = g / 2
+    return (np.ascontiguousarray(cc - g / 2), np.ascontiguousarray(G_half)), (
+        np.ascontiguousarray(cc + g / 2),
+        np.ascontiguousarray(G_half),
+    )
+
+
+# ---------------------------------------------------------------------------
+# main entry point
+# ---------------------------------------------------------------------------
+def reach(model, X0, times, inputs=None, W=None, options: ReachOptions | None = None):
+    """Reachable sets of ``x' = f(x, u, w)`` from ``X0`` (source report eq. 11).
+
+    Parameters
+    ----------
+    model : reachconf.Model
+    X0 : Interval or Zonotope
+        Initial set, dimension ``model.n``.
+    times : float or array_like
+        Final time (sets every ``time_step``) or strictly increasing sample
+        times; time-point sets are returned at these times.
+    inputs : array_like (K, m) or callable, optional
+        Known inputs, piecewise constant between sample times: row ``k`` acts
+        on ``[t_k, t_{k+1})``; a callable ``u(t)`` is evaluated at ``t_k``.
+    W : Interval or Zonotope, optional
+        Disturbance set; the disturbance may vary arbitrarily in time within it.
+        Default: ``{0}``.
+    options : ReachOptions, optional
+
+    Returns
+    -------
+    ReachTube
+
+    Raises
+    ------
+    SetError, ReachError, OptionsError
+    """
+    from reachconf.tube import ReachTube
+    from reachconf_kernels import nonlinear as nl
+
+    options = options or ReachOptions()
+    if not isinstance(options, ReachOptions):
+        raise OptionsError(f"options must be a ReachOptions, got {type(options).__name__}")
+    n, q = model.n, model.q
+    Z0 = _as_zonotope(X0, n, "X0")
+    if W is None:
+        W = Zonotope(np.zeros(q), np.zeros((q, 0)))
+    Wz = _as_zonotope(W, q, "W")
+    scalar = np.ndim(times) == 0
+    samples = _sample_times(times)
+    dts, t_start, sample_of_step, step_offsets = _step_grid(samples, options.time_step, scalar)
+    U = _input_table(model, inputs, samples, t_start, sample_of_step, per_step=scalar)
+    if scalar:  # every step end is a sample time
+        samples = np.concatenate([[samples[0]], t_start + dts])
+        step_offsets = np.arange(samples.size)
+
+    order = options.effective_tensor_order
+    comp = model.compiled(order=3 if order == 3 else 2)
+    third_iv = comp.third_iv if order == 3 else _dummy_third()
+    S = dts.size
+    gmax = int(n * max(options.zonotope_order, 1.0)) + n + 1
+    me = np.broadcast_to(np.asarray(options.max_error, dtype=float), (n,)).copy()
+    params = model.param_vector
+    algorithm = _ALGORITHMS.index(options.algorithm)
+    reduce_method = _REDUCTIONS.index(options.reduction)
+
+    def new_store():
+        return dict(
+            tp_c=np.zeros((S, n)),
+            tp_G=np.zeros((S, n, gmax)),
+            ti_c=np.zeros((S, n)),
+            ti_G=np.zeros((S, n, gmax)),
+            ng_tp=np.zeros(S, dtype=np.int64),
+            ng_ti=np.zeros(S, dtype=np.int64),
+            err=np.zeros((S, n)),
+        )
+
+    t0 = time.perf_counter()
+    branches = []  # (first_step, stop_step, store)
+    pending = [(0, np.ascontiguousarray(Z0.center), np.ascontiguousarray(Z0.generators), 0)]
+    splits = 0
+    chunk = max(50, S // 50)
+    bar = _progress(options.progress, S, f"reach {model.name}")
+    try:
+        while pending:
+            start, c, G, depth = pending.pop()
+            store = new_store()
+            k = start
+            failed = None
+            while k < S:
+                stop = min(S, k + chunk)
+                status, step, bad_state, bad_term, c_fail, G_fail = nl.reach_loop(
+                    c, G, U, dts, Wz.center, np.ascontiguousarray(Wz.generators), params,
+                    int(options.taylor_terms), comp.f, comp.jac, comp.hess, comp.hess_iv, third_iv,
+                    algorithm, order, float(options.zonotope_order), float(options.intermediate_order),
+                    float(options.error_order), reduce_method, int(options.max_error_iterations), me,
+                    float(options.rounding), k, stop,
+                    store["tp_c"], store["tp_G"], store["ti_c"], store["ti_G"],
+                    store["ng_tp"], store["ng_ti"], store["err"],
+                )  # fmt: skip
+                if bar is not None and depth == 0:
+                    bar.update(step - k)
+                if status != 0:
+                    failed = (status, step, bad_state, bad_term, c_fail, G_fail)
+                    break
+                c, G, k = np.ascontiguousarray(c_fail), np.ascontiguousarray(G_fail), stop
+            if failed is None:
+                branches.append((start, S, store))
+                continue
+            status, step, bad_state, bad_term, c_fail, G_fail = failed
+            branches.append((start, step, store))
+            if splits < options.max_splits and status in (3, 4, 2) and G_fail.shape[1] > 0:
+                splits += 1
+                half_a, half_b = _split(np.asarray(c_fail), np.asarray(G_fail), options.split_method)
+                pending.append((step, *half_a, depth + 1))
+                pending.append((step, *half_b, depth + 1))
+                continue
+            raise _reach_error(model, options, status, step, bad_state, bad_term, t_start, dts, store, comp, splits)
+    except KeyboardInterrupt:
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+    seconds = time.perf_counter() - t0
+    return ReachTube.from_branches(
+        model=model,
+        samples=samples,
+        step_offsets=step_offsets,
+        t_start=t_start,
+        dts=dts,
+        X0=Z0,
+        branches=branches,
+        options=options,
+        W=Wz,
+        splits=splits,
+        seconds=seconds,
+    )
+
+
+_DUMMY = None
+
+
+def _dummy_third():
+    global _DUMMY
+    if _DUMMY is None:
+        from numba import njit
+
+        from reachconf_kernels.signatures import IV_T4
+
+        @njit(IV_T4)
+        def no_third(zlo, zhi, p, outlo, outhi):  # pragma: no cover - never called
+            return 0
+
+        _DUMMY = no_third
+    return _DUMMY
+
+
+def _reach_error(model, options, status, step, bad_state, bad_term, t_start, dts, store, comp, splits):
+    t = float(t_start[step])
+    where = f"at t = {t:.6g} s (step {step}, dt = {dts[step]:.3g} s)"
+    if status == 1:
+        guard = comp.guards[bad_state - 1] if 0 < bad_state <= len(comp.guards) else "an interval operation"
+        msg = (f"reachability of model {model.name!r} failed {where}: {guard}. The set has grown into a region "
+               f"where the model is not defined; reduce the initial set or W, or use a smaller time_step.")
+        return ReachError(msg, time=t, state=None, term="domain")
+    state = model.state_names[bad_state] if 0 <= bad_state < model.n else None
+    term = _TERMS.get(bad_term, "abstraction error")
+    err = store["err"][step]
+    detail = f" in state {state!r} through the {term}" if state else ""
+    size = f"; error bound there {err[bad_state]:.3g}" if state and np.isfinite(err[bad_state]) else ""
+    hints = [f"a smaller time_step (now {dts[step]:.3g})"]
+    if options.effective_tensor_order == 2:
+        hints.append("tensor_order=3 (or algorithm='poly')")
+    hints.append(f"a larger max_splits (used {splits} of {options.max_splits})")
+    hints.append("splitting the initial set, or a smaller initial set / disturbance set W")
+    msg = (f"reachable set of model {model.name!r} exploded {where}{detail}: {_STATUS.get(status, '')}{size}. "
+           f"Try {', '.join(hints)}.")
+    return ReachError(msg, time=t, state=state, term=term)

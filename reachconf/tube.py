@@ -1,0 +1,331 @@
+"""The result of :func:`reachconf.reach`: a tube of reachable sets over time."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from reachconf.errors import DataError, ReachError, SetError
+from reachconf.sets import Interval, Zonotope
+
+__all__ = ["ReachTube", "SetUnion", "Containment"]
+
+
+class SetUnion:
+    """Union of zonotopes (the pieces of a split reachable set at one time)."""
+
+    def __init__(self, pieces):
+        self.pieces = tuple(pieces)
+        if not self.pieces:
+            raise SetError("SetUnion needs at least one set")
+
+    @property
+    def dim(self) -> int:
+        return self.pieces[0].dim
+
+    def interval(self) -> Interval:
+        lo = np.min([p.interval().lo for p in self.pieces], axis=0)
+        hi = np.max([p.interval().hi for p in self.pieces], axis=0)
+        return Interval(lo, hi)
+
+    def contains(self, points, tol=1e-9):
+        result = None
+        for p in self.pieces:
+            r = np.asarray(p.contains(points, tol=tol))
+            result = r if result is None else (result | r)
+        return result if result.ndim else bool(result)
+
+    def project(self, dims):
+        return SetUnion([p.project(dims) for p in self.pieces])
+
+    def linear_map(self, M):
+        return SetUnion([M @ p for p in self.pieces])
+
+    def __add__(self, other):
+        return SetUnion([p + other for p in self.pieces])
+
+    def plot(self, ax=None, dims=(0, 1), **style):
+        for p in self.pieces:
+            ax = p.plot(ax, dims=dims, **style)
+        return ax
+
+    def __iter__(self):
+        return iter(self.pieces)
+
+    def __len__(self):
+        return len(self.pieces)
+
+    def __repr__(self):
+        return f"SetUnion({len(self.pieces)} zonotopes of dimension {self.dim})"
+
+
+@dataclass
+class Containment:
+    """Result of :meth:`ReachTube.contains` (eqs. 42/43).
+
+    Attributes
+    ----------
+    inside : ndarray of bool, (K,)
+        Per sample: is the measurement inside the (output) reachable set ⊕ V.
+    times : ndarray (K,)
+    first_violation : int or None
+        Index of the first sample outside, or None if all are inside.
+    """
+
+    inside: np.ndarray
+    times: np.ndarray
+    first_violation: int | None
+
+    @property
+    def conformant(self) -> bool:
+        return bool(np.all(self.inside))
+
+    @property
+    def first_violation_time(self):
+        return None if self.first_violation is None else float(self.times[self.first_violation])
+
+
+def _zono(c, G, ng):
+    return Zonotope(c, G[:, :ng])
+
+
+class ReachTube:
+    """Reachable sets of a model over time.
+
+    Attributes
+    ----------
+    times : ndarray (K,)
+        Sample times; ``time_point_sets[k]`` encloses the states at ``times[k]``.
+    time_point_sets : list of Zonotope or SetUnion
+    time_intervals : ndarray (S, 2)
+        ``[t_start, t_end]`` of each integration step.
+    time_interval_sets : list of Zonotope or SetUnion
+        ``time_interval_sets[s]`` encloses the states over ``time_intervals[s]``.
+    state_names : tuple of str
+    splits : int
+        Number of set splits that were needed.
+    seconds : float
+        Wall-clock time of the reach.
+    """
+
+    def __init__(self, times, time_point_sets, time_intervals, time_interval_sets, state_names,
+                 model=None, inputs=None, splits=0, seconds=0.0, meta=None):  # fmt: skip
+        self.times = np.asarray(times, dtype=float)
+        self.time_point_sets = list(time_point_sets)
+        self.time_intervals = np.asarray(time_intervals, dtype=float).reshape(-1, 2)
+        self.time_interval_sets = list(time_interval_sets)
+        self.state_names = tuple(state_names)
+        self.model = model
+        self.inputs = None if inputs is None else np.asarray(inputs, dtype=float)
+        self.splits = int(splits)
+        self.seconds = float(seconds)
+        self.meta = dict(meta or {})
+
+    # ----------------------------------------------------------- building
+    @classmethod
+    def from_branches(cls, *, model, samples, step_offsets, t_start, dts, X0, branches, options, W, splits, seconds):
+        S = dts.size
+        ti_pieces = [[] for _ in range(S)]
+        tp_pieces = [[] for _ in range(S)]
+        for first, stop, store in branches:
+            for k in range(first, stop):
+                ti_pieces[k].append(_zono(store["ti_c"][k], store["ti_G"][k], store["ng_ti"][k]))
+                tp_pieces[k].append(_zono(store["tp_c"][k], store["tp_G"][k], store["ng_tp"][k]))
+        if any(not p for p in ti_pieces):
+            raise ReachError("internal error: a time step has no reachable set")
+
+        def one(pieces):
+            return pieces[0] if len(pieces) == 1 else SetUnion(pieces)
+
+        ti_sets = [one(p) for p in ti_pieces]
+        tp_sets = [X0] + [one(tp_pieces[int(step_offsets[k]) - 1]) for k in range(1, samples.size)]
+        intervals = np.column_stack([t_start, t_start + dts])
+        meta = {"model": model.name, "options": {k: _plain(v) for k, v in options.__dict__.items()}}
+        return cls(samples, tp_sets, intervals, ti_sets, model.state_names, model=model,
+                   splits=splits, seconds=seconds, meta=meta)  # fmt: skip
+
+    # ------------------------------------------------------------ queries
+    def __len__(self):
+        return self.times.size
+
+    def _dims(self, dims):
+        idx = []
+        for d in dims:
+            if isinstance(d, str):
+                if d not in self.state_names:
+                    raise SetError(f"unknown state {d!r}; states are {self.state_names}")
+                idx.append(self.state_names.index(d))
+            else:
+                d = int(d)
+                if not 0 <= d < len(self.state_names):
+                    raise SetError(f"dimension {d} out of range 0..{len(self.state_names) - 1}")
+                idx.append(d)
+        return idx
+
+    def at(self, t: float):
+        """The set at time ``t``: the time-point set if ``t`` is a sample time, else the time-interval set."""
+        t = float(t)
+        tol = 1e-9 * max(1.0, abs(t))
+        k = int(np.argmin(np.abs(self.times - t)))
+        if abs(self.times[k] - t) <= tol:
+            return self.time_point_sets[k]
+        s = np.nonzero((self.time_intervals[:, 0] <= t + tol) & (self.time_intervals[:, 1] >= t - tol))[0]
+        if s.size == 0:
+            raise ReachError(f"time {t} is outside the tube [{self.times[0]}, {self.times[-1]}]")
+        sets = [self.time_interval_sets[i] for i in s]
+        return sets[0] if len(sets) == 1 else SetUnion([p for st in sets for p in (st if isinstance(st, SetUnion) else [st])])
+
+    def project(self, dims) -> "ReachTube":
+        """The tube projected onto some states (names or indices)."""
+        idx = self._dims(dims)
+        return ReachTube(
+            self.times,
+            [s.project(idx) for s in self.time_point_sets],
+            self.time_intervals,
+            [s.project(idx) for s in self.time_interval_sets],
+            [self.state_names[i] for i in idx],
+            splits=self.splits,
+            seconds=self.seconds,
+            meta=self.meta,
+        )
+
+    def interval_hull(self) -> Interval:
+        """Box enclosing the whole tube (all time-interval sets)."""
+        b = self.bounds()
+        return Interval(b[:, 0, :].min(axis=0), b[:, 1, :].max(axis=0))
+
+    def bounds(self) -> np.ndarray:
+        """Interval hulls of the time-interval sets, shape (S, 2, n): ``[:, 0]`` lower, ``[:, 1]`` upper."""
+        out = np.empty((len(self.time_interval_sets), 2, len(self.state_names)))
+        for s, st in enumerate(self.time_interval_sets):
+            iv = st.interval()
+            out[s, 0], out[s, 1] = iv.lo, iv.hi
+        return out
+
+    def final_set(self):
+        return self.time_point_sets[-1]
+
+    # -------------------------------------------------------- conformance
+    def output_sets(self, inputs=None):
+        """Enclosures of ``h(R(t_k), u_k)`` for every sample time (without V)."""
+        if self.model is None:
+            raise ReachError("this tube has no model attached (loaded from a file); pass output=False")
+        from reachconf.output_map import output_enclosure
+
+        return [output_enclosure(self.model, s, None if inputs is None else inputs[k])
+                for k, s in enumerate(self.time_point_sets)]  # fmt: skip
+
+    def contains(self, times, Y, V=None, output=True, inputs=None, tol=1e-9) -> Containment:
+        """Check eq. 42/43: ``Y(t_i) in h(R(t_i)) ⊕ V`` for each sample.
+
+        Parameters
+        ----------
+        times : array_like (K,)
+            Times of the measurements; each must be a sample time of the tube
+            (otherwise the time-interval set containing it is used).
+        Y : array_like (K, p)
+            Measurements (outputs if ``output``, else states).
+        V : Interval or Zonotope, optional
+            Measurement-error set (additive).
+        inputs : array_like (K, m), optional
+            Known inputs at the sample times, needed if ``h`` depends on ``u``.
+        tol : float
+            Containment tolerance (zonotope norm <= 1 + tol).
+        """
+        times = np.asarray(times, dtype=float).reshape(-1)
+        Y = np.asarray(Y, dtype=float)
+        if Y.ndim == 1:
+            Y = Y[:, None]
+        if Y.shape[0] != times.size:
+            raise DataError(f"Y has {Y.shape[0]} rows for {times.size} times")
+        if not np.all(np.isfinite(Y)):
+            raise DataError("Y contains NaN or inf")
+        inside = np.zeros(times.size, dtype=bool)
+        for i, t in enumerate(times):
+            S = self.at(t)
+            if output:
+                from reachconf.output_map import output_enclosure
+
+                u = None if inputs is None else np.asarray(inputs, dtype=float)[i]
+                S = output_enclosure(self.model, S, u)
+            if V is not None:
+                S = S + (V.to_zonotope() if isinstance(V, Interval) else V)
+            if S.dim != Y.shape[1]:
+                raise DataError(f"Y has {Y.shape[1]} columns, the set has dimension {S.dim}")
+            inside[i] = bool(S.contains(Y[i], tol=tol))
+        bad = np.nonzero(~inside)[0]
+        return Containment(inside, times, int(bad[0]) if bad.size else None)
+
+    # ------------------------------------------------------------- output
+    def plot(self, dims=("X", "Y"), ax=None, color="C0", alpha=0.35, outline=True, label=None):
+        """Draw the 2-D projection: filled time-interval sets, outlined time-point sets."""
+        from reachconf.plot import plot_tube
+
+        return plot_tube(self, dims=dims, ax=ax, color=color, alpha=alpha, outline=outline, label=label)
+
+    def save(self, path) -> Path:
+        """Write the tube to ``.npz`` atomically (sets, times, names, metadata)."""
+        path = Path(path)
+        arrays = {"times": self.times, "time_intervals": self.time_intervals,
+                  "state_names": np.array(self.state_names, dtype=str)}  # fmt: skip
+        for prefix, sets in (("tp", self.time_point_sets), ("ti", self.time_interval_sets)):
+            cs, Gs, owner = [], [], []
+            for k, s in enumerate(sets):
+                for piece in (s if isinstance(s, SetUnion) else [s]):
+                    cs.append(piece.center)
+                    Gs.append(piece.generators)
+                    owner.append(k)
+            gmax = max(G.shape[1] for G in Gs)
+            G_arr = np.zeros((len(Gs), len(self.state_names), gmax))
+            for i, G in enumerate(Gs):
+                G_arr[i, :, : G.shape[1]] = G
+            arrays[f"{prefix}_c"] = np.array(cs)
+            arrays[f"{prefix}_G"] = G_arr
+            arrays[f"{prefix}_ng"] = np.array([G.shape[1] for G in Gs])
+            arrays[f"{prefix}_owner"] = np.array(owner)
+        arrays["meta"] = np.array(json.dumps({**self.meta, "splits": self.splits, "seconds": self.seconds}))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp.npz")
+        os.close(fd)
+        np.savez_compressed(tmp, **arrays)
+        os.replace(tmp, path)
+        return path
+
+    @classmethod
+    def load(cls, path) -> "ReachTube":
+        """Read a tube written by :meth:`save` (without the model)."""
+        path = Path(path)
+        if not path.exists():
+            raise DataError(f"{path}: no such file")
+        try:
+            data = np.load(path, allow_pickle=False)
+            sets = {}
+            for prefix, count in (("tp", data["times"].size), ("ti", data["time_intervals"].shape[0])):
+                pieces = [[] for _ in range(count)]
+                for c, G, ng, k in zip(data[f"{prefix}_c"], data[f"{prefix}_G"], data[f"{prefix}_ng"],
+                                       data[f"{prefix}_owner"]):  # fmt: skip
+                    pieces[int(k)].append(Zonotope(c, G[:, : int(ng)]))
+                sets[prefix] = [p[0] if len(p) == 1 else SetUnion(p) for p in pieces]
+            meta = json.loads(str(data["meta"]))
+        except (KeyError, ValueError, OSError) as exc:
+            raise DataError(f"{path}: not a reachconf tube file ({exc})") from None
+        return cls(data["times"], sets["tp"], data["time_intervals"], sets["ti"],
+                   [str(s) for s in data["state_names"]], splits=meta.pop("splits", 0),
+                   seconds=meta.pop("seconds", 0.0), meta=meta)  # fmt: skip
+
+    def __repr__(self):
+        return (f"ReachTube({len(self.times)} sample times from {self.times[0]:g} to {self.times[-1]:g} s, "
+                f"{len(self.time_interval_sets)} steps, states {self.state_names}, splits={self.splits})")
+
+
+def _plain(v):
+    if isinstance(v, (tuple, list)):
+        return [_plain(x) for x in v]
+    if isinstance(v, float) and not np.isfinite(v):
+        return str(v)
+    return v

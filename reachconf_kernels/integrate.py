@@ -1,0 +1,92 @@
+"""Fixed-step Runge–Kutta integration of generated models (compiled, cached once).
+
+Inputs and disturbances are piecewise constant over the sample intervals.
+Used for simulation, the IVP step of trace conformance (Alg. 1, line 3) and
+many short per-step problems; ``scipy.integrate.solve_ivp`` with tight
+tolerances is the reference in tests.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, types
+
+from reachconf_kernels.signatures import FN_POINT_VEC, f8_1, f8_2
+
+
+@njit(cache=True)
+def _rk4_step(f, x, zbuf, n, p, h, k1, k2, k3, k4, tmp):
+    zbuf[:n] = x
+    f(zbuf, p, k1)
+    for i in range(n):
+        tmp[i] = x[i] + 0.5 * h * k1[i]
+    zbuf[:n] = tmp
+    f(zbuf, p, k2)
+    for i in range(n):
+        tmp[i] = x[i] + 0.5 * h * k2[i]
+    zbuf[:n] = tmp
+    f(zbuf, p, k3)
+    for i in range(n):
+        tmp[i] = x[i] + h * k3[i]
+    zbuf[:n] = tmp
+    f(zbuf, p, k4)
+    for i in range(n):
+        x[i] = x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+
+
+@njit((FN_POINT_VEC, f8_1, f8_2, f8_2, f8_1, f8_1, types.int64), cache=True)
+def rk4_trace(f, x0, U, Wt, times, p, substeps):
+    """States at ``times`` from ``x0``, inputs ``U[k]`` and disturbances ``Wt[k]`` on ``[t_k, t_k+1)``.
+
+    ``substeps`` RK4 steps per sample interval.  Returns ``X`` of shape (K, n).
+    """
+    K = times.shape[0]
+    n = x0.shape[0]
+    m = U.shape[1]
+    q = Wt.shape[1]
+    X = np.empty((K, n))
+    x = x0.copy()
+    X[0] = x
+    z = np.zeros(n + m + q)
+    k1 = np.empty(n)
+    k2 = np.empty(n)
+    k3 = np.empty(n)
+    k4 = np.empty(n)
+    tmp = np.empty(n)
+    for k in range(K - 1):
+        z[n : n + m] = U[k]
+        z[n + m :] = Wt[k]
+        h = (times[k + 1] - times[k]) / substeps
+        for s in range(substeps):
+            _rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
+        X[k + 1] = x
+    return X
+
+
+@njit((FN_POINT_VEC, f8_2, f8_2, f8_2, f8_1, f8_1, types.int64), cache=True)
+def rk4_one_step_each(f, X0, U, Wt, dts, p, substeps):
+    """Integrate every sample interval separately: ``X0[k]`` over ``dts[k]`` with ``U[k]``, ``Wt[k]``.
+
+    Returns the end states, shape (K, n): the building block of the per-step
+    disturbance fit (eq. 25/26), vectorised over all steps.
+    """
+    K = X0.shape[0]
+    n = X0.shape[1]
+    m = U.shape[1]
+    q = Wt.shape[1]
+    out = np.empty((K, n))
+    z = np.zeros(n + m + q)
+    k1 = np.empty(n)
+    k2 = np.empty(n)
+    k3 = np.empty(n)
+    k4 = np.empty(n)
+    tmp = np.empty(n)
+    for k in range(K):
+        x = X0[k].copy()
+        z[n : n + m] = U[k]
+        z[n + m :] = Wt[k]
+        h = dts[k] / substeps
+        for s in range(substeps):
+            _rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
+        out[k] = x
+    return out
