@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, types
 
-from reachconf_kernels.signatures import FN_POINT_VEC, f8_1, f8_2
+from reachconf_kernels.signatures import FN_POINT_MAT, FN_POINT_VEC, f8_1, f8_2
 
 
 @njit(cache=True)
@@ -90,3 +90,30 @@ def rk4_one_step_each(f, X0, U, Wt, dts, p, substeps):
             _rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
         out[k] = x
     return out
+
+
+@njit(
+    types.Tuple((f8_2, types.float64[:, :, ::1]))(FN_POINT_VEC, FN_POINT_MAT, f8_2, f8_2, f8_1, types.int64,
+                                                  types.int64),
+    cache=True,
+)  # fmt: skip
+def eval_outputs(h, jac_h, X, U, p, n_out, q):
+    """``h(X[k], U[k])`` and ``dh/dz`` at every sample: shapes (K, p) and (K, p, nz)."""
+    K = X.shape[0]
+    n = X.shape[1]
+    m = U.shape[1]
+    nz = n + m + q
+    Y = np.empty((K, n_out))
+    J = np.zeros((K, n_out, nz))
+    z = np.zeros(nz)
+    out = np.empty(n_out)
+    Jk = np.zeros((n_out, nz))
+    for k in range(K):
+        z[:n] = X[k]
+        z[n : n + m] = U[k]
+        h(z, p, out)
+        Y[k] = out
+        Jk[:, :] = 0.0
+        jac_h(z, p, Jk)
+        J[k] = Jk
+    return Y, J

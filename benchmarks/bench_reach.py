@@ -1,0 +1,173 @@
+"""Reachability benchmark: Van der Pol, Laub-Loomis, closed-loop bicycle (issue: nonlinear engine).
+
+Prints, with the settings used: verdict, time (warm cache, best of ``--repeat``)
+and final width, next to Flow* 2.1.0's CPU times measured on this machine type
+(``../shared/research/peers.md``).  Run::
+
+    python benchmarks/bench_reach.py [--repeat 3] [--profile]
+
+The first run of a fresh checkout also compiles the kernels and models
+(printed separately as "warm-up"); the figures are for warm caches.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+import reachconf as rc
+from reachconf.models import laub_loomis, vanderpol
+
+FLOWSTAR = {
+    "vanderpol": "4.0 s (TM order 5, symbolic remainders; 7.4 s at order 6)",
+    "laub_loomis W=0.01": "not reported",
+    "laub_loomis W=0.05": "461 s (symbolic remainders only)",
+    "laub_loomis W=0.1": "not reported (18 s on newer hardware/version per its site)",
+}
+
+
+def _best(fn, repeat):
+    best, result = np.inf, None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        result = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, result
+
+
+VDP_OPTIONS = rc.ReachOptions(
+    algorithm="lin", tensor_order=3, time_step=0.01, taylor_terms=4, zonotope_order=20, error_order=10,
+    max_error=0.05, max_splits=16, split_method="generator",
+)  # fmt: skip
+
+
+def bench_vanderpol(repeat):
+    model = vanderpol(mu=1.0)
+    X0 = rc.Interval([1.25, 2.35], [1.55, 2.45])
+
+    def run():
+        return rc.reach(model, X0, 7.0, options=VDP_OPTIONS)
+
+    run()  # warm-up
+    seconds, tube = _best(run, repeat)
+    ymax = tube.bounds()[:, 1, 1].max()
+    fin = tube.final_set().interval()
+    return {
+        "benchmark": "vanderpol mu=1, T=7, y<2.75",
+        "verified": bool(ymax < 2.75),
+        "seconds": seconds,
+        "detail": f"max y = {ymax:.4f}; final width x {fin.hi[0] - fin.lo[0]:.4f}, y {fin.hi[1] - fin.lo[1]:.4f}; "
+        f"splits {tube.splits}",
+        "flowstar": FLOWSTAR["vanderpol"],
+        "settings": VDP_OPTIONS,
+    }
+
+
+LL_OPTIONS = {
+    0.01: rc.ReachOptions(algorithm="lin", tensor_order=2, time_step=0.02, zonotope_order=20),
+    0.05: rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.02, zonotope_order=20, error_order=5),
+    0.1: rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.01, zonotope_order=20, error_order=5,
+                         max_error=0.5, max_splits=16),
+}  # fmt: skip
+
+
+def bench_laub_loomis(repeat):
+    model = laub_loomis()
+    x0 = np.array([1.2, 1.05, 1.5, 2.4, 1.0, 0.1, 0.45])
+    rows = []
+    for W, opts in LL_OPTIONS.items():
+        X0 = rc.Interval(x0 - W, x0 + W)
+        spec = 4.5 if W < 0.1 else 5.0
+
+        def run():
+            return rc.reach(model, X0, 20.0, options=opts)
+
+        try:
+            run()
+            seconds, tube = _best(run, repeat)
+            x4max = tube.bounds()[:, 1, 3].max()
+            fin = tube.final_set().interval()
+            rows.append({
+                "benchmark": f"laub_loomis W={W}, T=20, x4<{spec}",
+                "verified": bool(x4max < spec),
+                "seconds": seconds,
+                "detail": f"max x4 = {x4max:.4f}; final width x4 {fin.hi[3] - fin.lo[3]:.4f}; splits {tube.splits}",
+                "flowstar": FLOWSTAR[f"laub_loomis W={W}"],
+                "settings": opts,
+            })
+        except rc.ReachError as exc:
+            rows.append({"benchmark": f"laub_loomis W={W}", "verified": False, "seconds": float("nan"),
+                         "detail": f"ReachError: {exc}", "flowstar": FLOWSTAR[f"laub_loomis W={W}"],
+                         "settings": opts})  # fmt: skip
+    return rows
+
+
+def bench_closed_loop_bicycle(repeat):
+    try:
+        from reachconf.campaign import reference_path
+        from reachconf.models import bicycle_closed_loop
+    except ImportError as exc:  # pragma: no cover - campaign not available
+        return {"benchmark": "closed-loop bicycle", "verified": None, "seconds": float("nan"),
+                "detail": f"skipped: {exc}", "flowstar": "-", "settings": None}  # fmt: skip
+    model = bicycle_closed_loop()
+    ref = reference_path("LC", 2.0, 10.0)
+    t = np.asarray(ref["t"])
+    keep = t <= 8.0 + 1e-9
+    t = t[keep]
+    U = np.column_stack([np.asarray(ref[k])[keep] for k in model.input_names])
+    x0 = np.array([ref["X_ref"][0], ref["Y_ref"][0], ref["psi_ref"][0], ref["v_ref"][0], 0.0, 0.0])
+    X0 = rc.Interval(x0 - [0.05, 0.05, np.radians(0.5), 0.1, 0.1, np.radians(0.8)],
+                     x0 + [0.05, 0.05, np.radians(0.5), 0.1, 0.1, np.radians(0.8)])  # Table 5 errors
+    # Table 6, LC row (w1..w6)
+    W = rc.Interval([-0.0831, -0.1173, -0.0593, -0.3203, -0.1503, -0.4414],
+                    [0.0552, 0.0274, 0.0678, 0.7775, 0.1051, 0.7231])  # fmt: skip
+    opts = rc.ReachOptions(algorithm="lin", tensor_order=2, time_step=0.02, zonotope_order=10)
+    times = t[::2]  # 50 Hz samples (time-point sets), 0.02 s steps
+    Us = U[::2]
+
+    def run():
+        return rc.reach(model, X0, times, inputs=Us, W=W, options=opts)
+
+    try:
+        run()
+        seconds, tube = _best(run, repeat)
+        fin = tube.final_set().interval()
+        detail = (f"8 s lane change at 10 m/s, Table 6 LC box; final width X {fin.hi[0] - fin.lo[0]:.3f} m, "
+                  f"Y {fin.hi[1] - fin.lo[1]:.3f} m; splits {tube.splits}")  # fmt: skip
+        ok = True
+    except rc.ReachError as exc:
+        seconds, detail, ok = float("nan"), f"ReachError: {exc}", False
+    return {"benchmark": "closed-loop bicycle LC 8 s (per reach)", "verified": ok, "seconds": seconds,
+            "detail": detail, "flowstar": "-", "settings": opts}  # fmt: skip
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--profile", action="store_true", help="profile the Van der Pol run (cProfile)")
+    args = parser.parse_args(argv)
+    t0 = time.perf_counter()
+    rows = [bench_vanderpol(args.repeat), *bench_laub_loomis(args.repeat), bench_closed_loop_bicycle(args.repeat)]
+    print(f"(warm-up, compilation and all repeats took {time.perf_counter() - t0:.1f} s)\n")
+    print(f"{'benchmark':42s} {'verified':>8s} {'time [s]':>9s}  Flow* 2.1.0 here")
+    for r in rows:
+        print(f"{r['benchmark']:42s} {str(r['verified']):>8s} {r['seconds']:9.3f}  {r['flowstar']}")
+        print(f"    {r['detail']}")
+        print(f"    settings: {r['settings']}")
+    if args.profile:
+        import cProfile
+        import pstats
+
+        model = vanderpol()
+        X0 = rc.Interval([1.25, 2.35], [1.55, 2.45])
+        prof = cProfile.Profile()
+        prof.enable()
+        rc.reach(model, X0, 7.0, options=VDP_OPTIONS)
+        prof.disable()
+        pstats.Stats(prof).sort_stats("cumulative").print_stats(12)
+
+
+if __name__ == "__main__":
+    main()

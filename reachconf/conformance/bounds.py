@@ -1,0 +1,162 @@
+"""Smallest disturbance / measurement-error boxes from trace conformance.
+
+* :func:`minimize_box` — synthesis step 2 (section 4.3.2): minimise the volume
+  of the disturbance box of one test case subject to trace conformance under
+  ``V`` (sequential convex programming, :func:`reachconf.conformance.optctrl.box_scp`),
+  then check the result with Alg. 1.
+* :func:`minimal_trace_bounds` — the smallest per-channel box ``W`` (given
+  ``V``), or ``V`` (for ``W = {0}``), that makes every trace of a suite
+  conformant: the analogue of Tables 3 and 4.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from reachconf.conformance.optctrl import box_scp
+from reachconf.conformance.trace import (
+    TraceOptions,
+    TraceResult,
+    _as_box,
+    _verdict,
+    case_arrays,
+    trace_conformance,
+    trace_disturbances,
+)
+from reachconf.errors import ConformanceError, OptionsError
+from reachconf.sets import Interval
+
+__all__ = ["minimize_box", "minimal_trace_bounds"]
+
+
+def _inflate(lo, hi, rel, floor):
+    pad = rel * (hi - lo) + floor
+    return lo - pad, hi + pad
+
+
+def minimize_box(model, case, V, W_start: Interval, start: TraceResult, options: TraceOptions | None = None):
+    """Synthesis step 2: the smallest-volume box W keeping the case trace conformant under V.
+
+    Parameters
+    ----------
+    W_start : Interval
+        Step 1's box (eqs. 62–66); returned unchanged if no better box is found.
+    start : TraceResult
+        The trace step 1 came from (its ``x0`` and ``W_trace`` seed the SCP).
+
+    Returns
+    -------
+    (Interval, TraceResult)
+        The box and the Alg. 1 result that proves it (``conformant`` is True
+        unless even ``W_start`` is not trace conformant under V).
+    """
+    options = options or TraceOptions()
+    t, U, Y = case_arrays(model, case)
+    V_lo, V_hi = _as_box(V, model.p, "V")
+    # leave 2 % of V for linearisation and integration errors
+    vc, vr = 0.5 * (V_lo + V_hi), 0.5 * (V_hi - V_lo)
+    lo, hi, x0, W = box_scp(model, t, U, Y, vc - 0.98 * vr, vc + 0.98 * vr, start.x0.copy(), start.W_trace.copy(),
+                            options, objective="volume")  # fmt: skip
+    name = getattr(case, "name", "case")
+    floor = 1e-9 * (1 + np.abs(W_start.hi - W_start.lo))
+    for attempt in range(4):
+        blo, bhi = _inflate(lo, hi, 0.01 * attempt, floor)
+        import time
+
+        res = _verdict(model, name, t, U, Y, x0, W, blo, bhi, V_lo, V_hi, options.substeps, "scp", time.perf_counter())
+        if res.conformant:
+            return Interval(blo, bhi), res
+    res = trace_conformance(model, case, W_start, V, method="perstep", options=options)
+    return W_start, res
+
+
+def minimal_trace_bounds(model, suite, V=None, method: str = "perstep", solve_for: str = "W",
+                         options: TraceOptions | None = None, workers=None, scheduler=None) -> Interval:  # fmt: skip
+    """Smallest per-channel box making every trace of the suite conformant (Tables 3/4 analogue).
+
+    Parameters
+    ----------
+    suite : TestSuite or iterable of TestCase
+    V : Interval, optional
+        Measurement-error set (required for ``solve_for="W"``; ignored for "V").
+    method : {"perstep", "optctrl"}
+        "perstep": the box is the hull of the per-step disturbance traces
+        (section 3.2.1); "optctrl": per case the box of smallest normalised
+        widths by SCP (Alg. 2's constraints with the box as variable), then
+        the hull over cases.
+    solve_for : {"W", "V"}
+        "V": the smallest measurement-error box for ``W = {0}``.
+
+    Returns
+    -------
+    Interval
+        Verified: ``trace_conformance`` with this box says conformant for every case.
+
+    Raises
+    ------
+    ConformanceError
+        If no verified box is found (e.g. the per-step trace drifts outside V).
+    """
+    options = options or TraceOptions()
+    cases = list(suite)
+    if not cases:
+        raise ConformanceError("the suite has no test cases")
+    if solve_for not in ("W", "V"):
+        raise OptionsError(f"solve_for must be 'W' or 'V', got {solve_for!r}")
+    if solve_for == "W" and V is None:
+        raise OptionsError("minimal_trace_bounds(solve_for='W') needs the measurement-error set V")
+    if method not in ("perstep", "optctrl"):
+        raise OptionsError(f"method must be 'perstep' or 'optctrl', got {method!r}")
+    from reachconf.runner import run_cases
+
+    jobs = [(model, case, V, method, solve_for, options) for case in cases]
+    boxes = run_cases(_case_box, jobs, workers=workers, scheduler=scheduler, desc="minimal bounds")
+    lo = np.min([b[0] for b in boxes], axis=0)
+    hi = np.max([b[1] for b in boxes], axis=0)
+    verify_method = "optctrl" if (solve_for == "V" or method == "optctrl") else "perstep"
+    dim = model.p if solve_for == "V" else model.q
+    for attempt in range(6):
+        box = Interval(lo, hi)
+        W, Vb = (Interval(np.zeros(model.q), np.zeros(model.q)), box) if solve_for == "V" else (box, V)
+        jobs = [(model, case, W, Vb, verify_method, options) for case in cases]
+        verdicts = run_cases(_verify, jobs, workers=workers, scheduler=scheduler, desc="verify bounds")
+        failed = [c.name for c, ok in zip(cases, verdicts) if not ok]
+        if not failed:
+            return box
+        if verify_method == "perstep":
+            break  # the per-step traces do not depend on the box: enlarging cannot help
+        lo, hi = _inflate(lo, hi, 0.05, 1e-9 * np.ones(dim))
+    raise ConformanceError(
+        f"no verified {solve_for} box found with method {method!r}: cases {failed} are not trace conformant "
+        f"with the hull of the per-case boxes"
+        + ("; the per-step traces drift outside V — try method='optctrl'" if verify_method == "perstep" else "")
+    )
+
+
+def _case_box(job):
+    model, case, V, method, solve_for, options = job
+    t, U, Y = case_arrays(model, case)
+    if solve_for == "V":
+        start = trace_disturbances(model, case, method="perstep", options=options) if model.q else None
+        x0 = start.x0 if start is not None else case_arrays(model, case)[2][0][: model.n]
+        W0 = np.zeros((t.size - 1, model.q))
+        zero = (np.zeros(model.q), np.zeros(model.q))
+        lo, hi, _, _ = box_scp(model, t, U, Y, None, None, x0, W0, options, objective="sum", W_fixed=zero,
+                               V_free=True)  # fmt: skip
+        return lo, hi
+    if method == "perstep":
+        res = trace_disturbances(model, case, method="perstep", options=options)
+        return res.W_trace.min(axis=0), res.W_trace.max(axis=0)
+    start = trace_disturbances(model, case, method="perstep", options=options)
+    V_lo, V_hi = _as_box(V, model.p, "V")
+    vc, vr = 0.5 * (V_lo + V_hi), 0.5 * (V_hi - V_lo)
+    scale = np.ptp(start.W_trace, axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    lo, hi, _, _ = box_scp(model, t, U, Y, vc - 0.98 * vr, vc + 0.98 * vr, start.x0, start.W_trace, options,
+                           objective="sum", scale=scale)  # fmt: skip
+    return lo, hi
+
+
+def _verify(job):
+    model, case, W, V, method, options = job
+    return trace_conformance(model, case, W, V, method=method, options=options).conformant

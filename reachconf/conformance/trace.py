@@ -1,0 +1,417 @@
+"""Trace conformance (source report section 3.2, Alg. 1 and Alg. 2).
+
+A model ``<f, h, V, W>`` is trace conformant to a test case ``<U, Y, T>`` if
+some initial state, disturbance trace in ``W`` and measurement-error trace in
+``V`` reproduce the measurements (eqs. 22–24).  Alg. 1 finds a candidate
+disturbance trace (DISTURBANCETRACE: the per-step fit of section 3.2.1, or the
+optimal-control QP of Alg. 2), then *simulates* the model with it (the IVP of
+line 3) and computes the measurement errors from the simulated states (line
+4).  The verdict uses only the simulated trace, so it is never wrongly
+"conformant" — the search may fail to find a trace (a false "not
+conformant"), never the reverse.  The IVP is integrated with RK4 at two step
+sizes; the difference (an estimate of the integration error) is subtracted
+from the measurement-error margins.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from reachconf.errors import ConformanceError, DataError, OptionsError, SolverError
+from reachconf.sets import Interval, Zonotope
+
+__all__ = [
+    "TraceOptions",
+    "TraceResult",
+    "trace_conformance",
+    "trace_disturbances",
+    "state_estimate",
+    "case_arrays",
+]
+
+
+@dataclass(frozen=True)
+class TraceOptions:
+    """Options of trace conformance.
+
+    Parameters
+    ----------
+    objective : {"absolute", "relative"}, default "absolute"
+        Per-step fit: weighted squared residual (weights ``1 / scale^2``, the
+        scale being V's radius or, if V is zero there, the signal's spread) or
+        the relative residual of eq. 27 (``/ y_{k+1}``; needs non-zero data).
+    anchor : {"auto", "measured", "simulated"}, default "auto"
+        Per-step fit: start every step from the measured state (eq. 25, steps
+        independent) or from the simulated state of the previous step (the
+        IVP trace, no drift).  "auto": measured if there are at least as many
+        disturbances as states, else simulated.
+    substeps : int, default 10
+        RK4 steps per sample interval of the IVP and the per-step fit.
+    gauss_newton_iterations : int, default 8
+        Iterations of the per-step fit.
+    max_iterations : int, default 15
+        Outer iterations of Alg. 2 (QP + IVP).
+    epsilon : float, default 1e-6
+        Alg. 2 stops when ``||X - X_tilde||_inf <= epsilon`` (line 8).
+    subdivision : int, default 1
+        ``r`` of Alg. 2: disturbances per sample interval (r-step subdivision).
+    trust_region : float, default 1.0
+        Bound on the state change per QP iteration, in units of the state scale.
+    solver : str or None, default None
+        cvxpy solver (None: Clarabel, then OSQP).
+    """
+
+    objective: str = "absolute"
+    anchor: str = "auto"
+    substeps: int = 10
+    gauss_newton_iterations: int = 8
+    max_iterations: int = 15
+    epsilon: float = 1e-6
+    subdivision: int = 1
+    trust_region: float = 1.0
+    solver: str | None = None
+
+    def __post_init__(self):
+        if self.objective not in ("absolute", "relative"):
+            raise OptionsError(f"TraceOptions.objective must be 'absolute' or 'relative', got {self.objective!r}")
+        if self.anchor not in ("auto", "measured", "simulated"):
+            raise OptionsError(f"TraceOptions.anchor must be 'auto', 'measured' or 'simulated', got {self.anchor!r}")
+        for name in ("substeps", "gauss_newton_iterations", "max_iterations", "subdivision"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, np.integer)) and v >= 1):
+                raise OptionsError(f"TraceOptions.{name} must be a positive integer, got {v!r}")
+        if not self.epsilon > 0 or not self.trust_region > 0:
+            raise OptionsError("TraceOptions.epsilon and trust_region must be positive")
+
+
+@dataclass
+class TraceResult:
+    """Outcome of Alg. 1 for one test case.
+
+    Attributes
+    ----------
+    case : str
+    t : ndarray (K,)
+    conformant : bool
+        True only if the simulated trace satisfies eqs. 22–24 with margin.
+    x0 : ndarray (n,)
+    X : ndarray (K, n)
+        Simulated states (the IVP solution, Alg. 1 line 3).
+    W_trace : ndarray (K-1, q)
+        Disturbance on each sample interval (``(K-1) r`` rows with subdivision r).
+    V_trace : ndarray (K, p)
+        Measurement errors ``Y - h(X, U)`` (Alg. 1 line 4).
+    margins : dict
+        Channel (disturbance or output name) -> smallest distance to the
+        bound over the trace (negative where the bound is violated; output
+        margins already reduced by the integration-error estimate).
+    method : str
+    seconds : float
+    message : str
+    integration_error : ndarray (p,)
+        Estimated integration error of the simulated outputs.
+    """
+
+    case: str
+    t: np.ndarray
+    conformant: bool
+    x0: np.ndarray
+    X: np.ndarray
+    W_trace: np.ndarray
+    V_trace: np.ndarray
+    margins: dict = field(default_factory=dict)
+    method: str = "perstep"
+    seconds: float = 0.0
+    message: str = ""
+    integration_error: np.ndarray | None = None
+
+    def disturbance_box(self) -> Interval:
+        """Interval hull of the disturbance trace (eqs. 62–66)."""
+        return Interval(self.W_trace.min(axis=0), self.W_trace.max(axis=0))
+
+    def error_box(self) -> Interval:
+        """Interval hull of the measurement-error trace."""
+        return Interval(self.V_trace.min(axis=0), self.V_trace.max(axis=0))
+
+    def to_dict(self) -> dict:
+        return {
+            "case": self.case,
+            "conformant": bool(self.conformant),
+            "method": self.method,
+            "seconds": float(self.seconds),
+            "message": self.message,
+            "x0": self.x0.tolist(),
+            "margins": {k: float(v) for k, v in self.margins.items()},
+            "W_box": [[float(a), float(b)] for a, b in zip(*_box_lists(self.W_trace))],
+            "V_box": [[float(a), float(b)] for a, b in zip(*_box_lists(self.V_trace))],
+        }
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2)
+
+    def plot(self, model=None, axes=None):
+        """Disturbance and measurement-error traces over time."""
+        import matplotlib.pyplot as plt
+
+        q, p = self.W_trace.shape[1], self.V_trace.shape[1]
+        if axes is None:
+            _, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+        tw = self.t[:-1] if self.W_trace.shape[0] == self.t.size - 1 else np.linspace(
+            self.t[0], self.t[-1], self.W_trace.shape[0], endpoint=False)  # fmt: skip
+        names_w = model.disturbance_names if model is not None else [f"w{i + 1}" for i in range(q)]
+        names_v = model.output_names if model is not None else [f"v{i + 1}" for i in range(p)]
+        for i in range(q):
+            axes[0].step(tw, self.W_trace[:, i], where="post", label=names_w[i], lw=0.8)
+        for i in range(p):
+            axes[1].plot(self.t, self.V_trace[:, i], label=names_v[i], lw=0.8)
+        axes[0].set_ylabel("disturbance w")
+        axes[1].set_ylabel("measurement error v")
+        axes[1].set_xlabel("t [s]")
+        for ax in axes:
+            ax.legend(fontsize=7, ncol=3)
+        axes[0].set_title(f"{self.case}: {'conformant' if self.conformant else 'not conformant'} ({self.method})")
+        return axes
+
+
+def _box_lists(A):
+    if A.size == 0:
+        return [], []
+    return A.min(axis=0), A.max(axis=0)
+
+
+# ---------------------------------------------------------------------------
+# data plumbing
+# ---------------------------------------------------------------------------
+def case_arrays(model, case):
+    """``(t, U, Y)`` of a test case in the model's input/output order (DataError naming what is missing)."""
+    names_u = tuple(getattr(case, "input_names", ()))
+    names_y = tuple(getattr(case, "output_names", ()))
+    if names_u == model.input_names and names_y == model.output_names:
+        t, U, Y = case.t, case.U, case.Y
+    else:
+        try:
+            sel = case.select(model.input_names, model.output_names)
+        except DataError as exc:
+            raise DataError(f"test case {case.name!r} does not fit model {model.name!r}: {exc}") from None
+        t, U, Y = sel.t, sel.U, sel.Y
+    t = np.ascontiguousarray(t, dtype=float)
+    U = np.ascontiguousarray(np.asarray(U, dtype=float).reshape(t.size, model.m))
+    Y = np.ascontiguousarray(np.asarray(Y, dtype=float).reshape(t.size, model.p))
+    return t, U, Y
+
+
+def _as_box(S, dim: int, name: str) -> tuple[np.ndarray, np.ndarray]:
+    if S is None:
+        return np.zeros(dim), np.zeros(dim)
+    if isinstance(S, Zonotope):
+        S = S.interval()
+    if not isinstance(S, Interval):
+        raise OptionsError(f"{name} must be a reachconf Interval or Zonotope, got {type(S).__name__}")
+    if S.dim != dim:
+        raise OptionsError(f"{name} has dimension {S.dim}, the model needs {dim}")
+    return np.asarray(S.lo, float), np.asarray(S.hi, float)
+
+
+def _output_states(model):
+    """Index of each state among the outputs if every state is output directly (y = x-part), else None."""
+    import sympy as sp
+
+    idx = []
+    for s in model.z_symbols[: model.n]:
+        hit = [i for i, e in enumerate(model.h_expr) if isinstance(e, sp.Symbol) and e == s]
+        if not hit:
+            return None
+        idx.append(hit[0])
+    return idx
+
+
+def state_estimate(model, case) -> np.ndarray:
+    """States at the sample times from the measured outputs (``h`` inverted), shape (K, n).
+
+    If every state is an output, it is read off directly.  Otherwise ``h(x, u) = y``
+    is solved for ``x`` at every sample by Gauss–Newton (all samples at once);
+    this needs ``h`` to determine the state (at least ``n`` independent outputs).
+    """
+    t, U, Y = case_arrays(model, case)
+    direct = _output_states(model)
+    if direct is not None:
+        return np.ascontiguousarray(Y[:, direct])
+    if model.p < model.n:
+        raise ConformanceError(
+            f"model {model.name!r} has {model.p} outputs for {model.n} states: the state cannot be read from the "
+            f"measurements; use method='optctrl'"
+        )
+    from reachconf.output_map import affine_output
+
+    aff = affine_output(model)
+    if aff is not None and np.linalg.matrix_rank(aff[0]) == model.n:
+        C, D, e = aff
+        rhs = Y - U @ D.T - e
+        return np.ascontiguousarray(np.linalg.lstsq(C, rhs.T, rcond=None)[0].T)
+    # nonlinear h: Gauss-Newton on all samples at once
+    comp = model.compiled()
+    pv = model.param_vector
+    K, n = t.size, model.n
+    X = np.zeros((K, n))
+    for _ in range(30):
+        R, JJ = _outputs(model, X, U, jacobian=True)
+        R = R - Y
+        steps = np.stack([np.linalg.lstsq(JJ[k], -R[k], rcond=None)[0] for k in range(K)])
+        X += steps
+        if np.max(np.abs(steps)) <= 1e-12 * (1 + np.max(np.abs(X))):
+            return X
+    raise ConformanceError(f"model {model.name!r}: could not invert the output map h to estimate the states")
+
+
+def _weights(model, Yx, V_lo, V_hi, objective):
+    """Weights of the per-step residual components (per step, per state)."""
+    K, n = Yx.shape
+    if objective == "relative":
+        if np.any(Yx[1:] == 0):
+            raise ConformanceError("objective='relative' (eq. 27) needs measurements that are never zero")
+        return 1.0 / Yx[1:] ** 2
+    direct = _output_states(model)
+    scale = np.ptp(Yx, axis=0)
+    if direct is not None:
+        vrad = 0.5 * (V_hi - V_lo)[direct]
+        scale = np.where(vrad > 0, vrad, scale)
+    scale = np.where(scale > 0, scale, 1.0)
+    return np.tile(1.0 / scale**2, (K - 1, 1))
+
+
+# ---------------------------------------------------------------------------
+# IVP and verdict (Alg. 1, lines 3-5)
+# ---------------------------------------------------------------------------
+def _simulate_with_error(model, x0, U, Wt, t, substeps):
+    """RK4 trace and an estimate of its integration error (step doubling, Richardson)."""
+    from reachconf_kernels.integrate import rk4_trace
+
+    comp = model.compiled()
+    pv = model.param_vector
+    Wfull = np.vstack([Wt, Wt[-1:]]) if Wt.shape[0] == t.size - 1 else Wt
+    Ufull = U
+    X1 = rk4_trace(comp.f, x0, Ufull, np.ascontiguousarray(Wfull), t, pv, int(substeps))
+    X2 = rk4_trace(comp.f, x0, Ufull, np.ascontiguousarray(Wfull), t, pv, int(2 * substeps))
+    err = np.abs(X2 - X1) * (16.0 / 15.0) + 1e-12 * (1 + np.abs(X2))
+    return X2, err
+
+
+def _outputs(model, X, U, jacobian=False):
+    """``h(X[k], U[k])`` for all samples (and the state Jacobians ``dh/dx`` if asked)."""
+    from reachconf.output_map import affine_output
+    from reachconf_kernels.integrate import eval_outputs
+
+    aff = affine_output(model)
+    if aff is not None and not jacobian:
+        C, D, e = aff
+        return X @ C.T + U @ D.T + e
+    comp = model.compiled()
+    Yh, J = eval_outputs(comp.h, comp.jac_h, np.ascontiguousarray(X), np.ascontiguousarray(U), model.param_vector,
+                         model.p, model.q)  # fmt: skip
+    return (Yh, np.ascontiguousarray(J[:, :, : model.n])) if jacobian else Yh
+
+
+def _verdict(model, case_name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, substeps, method, t0, message=""):
+    X, xerr = _simulate_with_error(model, x0, U, Wt, t, substeps)
+    Vt = Y - _outputs(model, X, U)
+    # integration error mapped to the outputs (first order, through |dh/dx|)
+    from reachconf.output_map import affine_output
+
+    aff = affine_output(model)
+    if aff is not None:
+        yerr = xerr @ np.abs(aff[0]).T
+    else:
+        yerr = np.max(xerr, axis=1, keepdims=True) * np.ones((1, model.p)) * 10.0
+    margins = {}
+    ok = True
+    for i, name in enumerate(model.disturbance_names):
+        m = float(np.min(np.minimum(Wt[:, i] - W_lo[i], W_hi[i] - Wt[:, i]))) if Wt.size else 0.0
+        margins[name] = m
+        ok &= m >= 0
+    for i, name in enumerate(model.output_names):
+        key = name if name not in margins else f"v:{name}"
+        m = float(np.min(np.minimum(Vt[:, i] - yerr[:, i] - V_lo[i], V_hi[i] - Vt[:, i] - yerr[:, i])))
+        margins[key] = m
+        ok &= m >= 0
+    finite = bool(np.all(np.isfinite(X)))
+    ok = ok and finite
+    if not finite:
+        message = (message + "; " if message else "") + "the simulated trace diverged (NaN/inf)"
+    return TraceResult(case_name, t, bool(ok), x0, X, Wt, Vt, margins, method, time.perf_counter() - t0,
+                       message, yerr.max(axis=0))  # fmt: skip
+
+
+# ---------------------------------------------------------------------------
+# DISTURBANCETRACE, section 3.2.1
+# ---------------------------------------------------------------------------
+def _perstep(model, t, U, Y, V_lo, V_hi, options, case):
+    from reachconf_kernels.tracefit import perstep_fit
+
+    Yx = state_estimate(model, case)
+    anchor = options.anchor
+    if anchor == "auto":
+        anchor = "measured" if model.q >= model.n else "simulated"
+    if model.q == 0:
+        return Yx[0].copy(), np.zeros((t.size - 1, 0)), anchor
+    weights = np.ascontiguousarray(_weights(model, Yx, V_lo, V_hi, options.objective))
+    W0 = np.zeros((t.size - 1, model.q))
+    comp = model.compiled()
+    Wt, _ = perstep_fit(comp.f, Yx, Yx, np.ascontiguousarray(U[:-1]), np.diff(t), model.param_vector, weights, W0,
+                        int(options.substeps), int(options.gauss_newton_iterations), anchor == "simulated")  # fmt: skip
+    return Yx[0].copy(), Wt, anchor
+
+
+def trace_disturbances(model, case, method: str = "perstep", V=None, options: TraceOptions | None = None):
+    """DISTURBANCETRACE without bounds: the disturbance trace and its simulated trace.
+
+    The verdict fields refer to unbounded ``W`` and the given ``V`` (default
+    ``{0}``).  Synthesis step 1 (eqs. 62–66) takes ``result.disturbance_box()``.
+    """
+    options = options or TraceOptions()
+    inf = np.full(model.q, np.inf)
+    return trace_conformance(model, case, Interval(-inf, inf) if model.q else None, V, method=method,
+                             options=options, _unbounded=True)  # fmt: skip
+
+
+def trace_conformance(model, case, W, V, method: str = "perstep", options: TraceOptions | None = None,
+                      _unbounded: bool = False) -> TraceResult:  # fmt: skip
+    """Alg. 1: is the model with disturbance set ``W`` and measurement-error set ``V`` trace conformant?
+
+    Parameters
+    ----------
+    model : Model
+    case : TestCase
+    W, V : Interval or Zonotope (their interval hulls are used), or None for ``{0}``
+    method : {"perstep", "optctrl"}
+        DISTURBANCETRACE by the per-step fit (section 3.2.1, eqs. 25–27) or by
+        the optimal-control QP (Alg. 2, eqs. 29–41).
+    options : TraceOptions
+
+    Returns
+    -------
+    TraceResult
+    """
+    t0 = time.perf_counter()
+    options = options or TraceOptions()
+    if method not in ("perstep", "optctrl"):
+        raise OptionsError(f"method must be 'perstep' or 'optctrl', got {method!r}")
+    t, U, Y = case_arrays(model, case)
+    if _unbounded:
+        W_lo, W_hi = np.full(model.q, -np.inf), np.full(model.q, np.inf)
+    else:
+        W_lo, W_hi = _as_box(W, model.q, "W")
+    V_lo, V_hi = _as_box(V, model.p, "V")
+    name = getattr(case, "name", "case")
+    if method == "perstep":
+        x0, Wt, anchor = _perstep(model, t, U, Y, V_lo, V_hi, options, case)
+        return _verdict(model, name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, options.substeps,
+                        f"perstep ({anchor})", t0)  # fmt: skip
+    from reachconf.conformance.optctrl import optctrl_trace
+
+    x0, Wt, message = optctrl_trace(model, t, U, Y, W_lo, W_hi, V_lo, V_hi, options, case)
+    return _verdict(model, name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, options.substeps, "optctrl", t0,
+                    message)  # fmt: skip

@@ -1,0 +1,235 @@
+"""Reachability: soundness against simulated trajectories, closed forms, errors, the tube API."""
+
+import numpy as np
+import pytest
+
+import reachconf as rc
+from reachconf.models import bicycle, vanderpol
+from reachconf.simulate import simulate_ivp
+from reachconf.tube import SetUnion
+
+RNG_SEED = 20261122
+
+
+def _initial_points(X0: rc.Interval, count: int, rng) -> np.ndarray:
+    """Random points of the box and all its corners (2^n, n small)."""
+    n = X0.dim
+    corners = np.array(np.meshgrid(*[[0, 1]] * n)).reshape(n, -1).T
+    corners = np.where(corners == 1, X0.hi, X0.lo)
+    rand = rng.uniform(X0.lo, X0.hi, size=(max(count - len(corners), 0), n))
+    return np.vstack([corners, rand])
+
+
+def _simulate_many(model, X0, times, W, inputs, count, rng, dense=3):
+    """Trajectories from random/corner initial states with piecewise-constant extreme disturbances."""
+    pts = _initial_points(X0, count, rng)
+    K = times.size
+    out_X, out_td, out_Xd = [], [], []
+    for x0 in pts:
+        if W is not None and model.q:
+            signs = rng.random((K - 1, model.q)) < 0.5
+            wt = np.where(signs, W.hi, W.lo)
+        else:
+            wt = None
+        X, td, Xd = simulate_ivp(model, x0, times, inputs=inputs, disturbances=wt, rtol=1e-10, atol=1e-12,
+                                 dense=dense)  # fmt: skip
+        out_X.append(X)
+        out_td.append(td)
+        out_Xd.append(Xd)
+    return np.array(out_X), np.array(out_td), np.array(out_Xd)
+
+
+def _assert_tube_contains(tube, X, td, Xd, tol=1e-9):
+    """Every time point in its time-point set; every dense sample in a time-interval set covering its time."""
+    N, K, n = X.shape
+    assert np.allclose(tube.times, tube.times)  # sample times are the simulation times
+    for k in range(K):
+        inside = np.asarray(tube.time_point_sets[k].contains(X[:, k], tol=tol))
+        assert inside.all(), f"time point {tube.times[k]}: {np.count_nonzero(~inside)} of {N} outside"
+    t_flat = td[0].ravel()
+    starts = tube.time_intervals[:, 0]
+    for j, t in enumerate(t_flat):
+        s = int(np.searchsorted(starts, t, side="right") - 1)
+        assert tube.time_intervals[s, 0] <= t <= tube.time_intervals[s, 1]
+        pts = Xd[:, j // td.shape[2], j % td.shape[2]]
+        inside = np.asarray(tube.time_interval_sets[s].contains(pts, tol=tol))
+        assert inside.all(), f"dense time {t}: {np.count_nonzero(~inside)} of {N} outside"
+
+
+def _assert_tight(tube, X):
+    """A sound tube that is also not absurdly large: final hull within 20x the sampled spread (+ margin)."""
+    iv = tube.time_point_sets[-1].interval()
+    spread = X[:, -1].max(axis=0) - X[:, -1].min(axis=0)
+    assert np.all(iv.hi - iv.lo <= 20 * spread + 0.05)
+
+
+# ---------------------------------------------------------------- Van der Pol
+VDP_X0 = rc.Interval([1.25, 2.35], [1.55, 2.45])
+VDP_TIMES = np.round(np.arange(0.0, 2.0 + 1e-9, 0.1), 10)
+
+
+@pytest.fixture(scope="module")
+def vdp_runs():
+    rng = np.random.default_rng(RNG_SEED)
+    model = vanderpol()
+    return model, _simulate_many(model, VDP_X0, VDP_TIMES, None, None, 200, rng)
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        rc.ReachOptions(algorithm="lin", tensor_order=2, time_step=0.02),
+        rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.02, error_order=10),
+        rc.ReachOptions(algorithm="poly", time_step=0.02, error_order=10),
+        rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.05, reduction="pca", zonotope_order=5),
+    ],
+    ids=["lin2", "lin3", "poly", "lin3-pca-coarse"],
+)
+def test_vanderpol_sound(vdp_runs, options):
+    model, (X, td, Xd) = vdp_runs
+    tube = rc.reach(model, VDP_X0, VDP_TIMES, options=options)
+    _assert_tube_contains(tube, X, td, Xd)
+    _assert_tight(tube, X)
+
+
+def test_vanderpol_sound_with_splits(vdp_runs):
+    """Forced splitting (tiny max_error) stays sound: pieces cover every trajectory."""
+    model, (X, td, Xd) = vdp_runs
+    opts = rc.ReachOptions(tensor_order=3, time_step=0.02, max_error=0.03, max_splits=6)
+    tube = rc.reach(model, VDP_X0, VDP_TIMES, options=opts)
+    assert tube.splits > 0
+    assert any(isinstance(s, SetUnion) for s in tube.time_point_sets)
+    _assert_tube_contains(tube, X, td, Xd)
+
+
+# ------------------------------------------------- open-loop bicycle with W
+BIKE_X0 = rc.Interval([0.0, -0.05, -0.01, 9.9, -0.02, -0.01], [0.1, 0.05, 0.01, 10.1, 0.02, 0.01])
+BIKE_W = rc.Interval([-0.2, -0.3, -0.3], [0.2, 0.3, 0.3])
+BIKE_TIMES = np.round(np.arange(0.0, 1.5 + 1e-9, 0.1), 10)
+
+
+@pytest.fixture(scope="module")
+def bike_runs():
+    rng = np.random.default_rng(RNG_SEED + 1)
+    model = bicycle()
+    t = BIKE_TIMES
+    inputs = np.column_stack([0.5 * np.sin(t), 0.03 * np.sin(2 * t)])
+    return model, inputs, _simulate_many(model, BIKE_X0, t, BIKE_W, inputs, 200, rng)
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        rc.ReachOptions(algorithm="lin", tensor_order=2, time_step=0.01),
+        rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.02),
+        rc.ReachOptions(algorithm="poly", time_step=0.02),
+    ],
+    ids=["lin2", "lin3", "poly"],
+)
+def test_bicycle_with_disturbances_sound(bike_runs, options):
+    model, inputs, (X, td, Xd) = bike_runs
+    tube = rc.reach(model, BIKE_X0, BIKE_TIMES, inputs=inputs, W=BIKE_W, options=options)
+    _assert_tube_contains(tube, X, td, Xd)
+    _assert_tight(tube, X)
+
+
+# ----------------------------------------------------------- linear systems
+def test_linear_rotation_matches_closed_form():
+    """x' = y, y' = -x: the set at t is the initial box rotated by -t (exactly, up to rounding)."""
+    model = rc.Model(name="rotation", states=("x", "y"), dynamics=lambda s: [s.y, -s.x])
+    X0 = rc.Interval([0.9, -0.1], [1.1, 0.1])
+    times = np.linspace(0.0, 2 * np.pi, 9)
+    tube = rc.reach(model, X0, times, options=rc.ReachOptions(time_step=0.05, taylor_terms=6))
+    for t, S in zip(times, tube.time_point_sets):
+        R = np.array([[np.cos(t), np.sin(t)], [-np.sin(t), np.cos(t)]])
+        exact = R @ X0.to_zonotope()
+        lo_e, hi_e = exact.interval().lo, exact.interval().hi
+        iv = S.interval()
+        assert np.all(iv.lo <= lo_e + 1e-12) and np.all(iv.hi >= hi_e - 1e-12)  # sound
+        assert np.allclose(iv.lo, lo_e, atol=1e-9) and np.allclose(iv.hi, hi_e, atol=1e-9)  # exact enough
+
+
+def test_linear_with_uncertain_input_close_to_exact_support():
+    """x' = y, y' = -x + w, |w| <= 0.01 over 2 pi: x-support of the input part is 0.01 * int |sin| = 0.04."""
+    model = rc.Model(name="rot_w", states=("x", "y"), disturbances=("w",), dynamics=lambda s: [s.y, -s.x + s.w])
+    X0 = rc.Interval([1.0, 0.0], [1.0, 0.0])
+    tube = rc.reach(model, X0, 2 * np.pi, W=rc.Interval([-0.01], [0.01]),
+                    options=rc.ReachOptions(time_step=0.01, taylor_terms=6, zonotope_order=50))  # fmt: skip
+    iv = tube.final_set().interval()
+    half_width = 0.5 * (iv.hi[0] - iv.lo[0])
+    assert 0.04 - 1e-6 <= half_width <= 0.04 * 1.1
+
+
+# ------------------------------------------------------------ bad input
+def test_reach_bad_input():
+    model = vanderpol()
+    with pytest.raises(rc.SetError, match="X0 has dimension 3"):
+        rc.reach(model, rc.Interval([0, 0, 0], [1, 1, 1]), 1.0)
+    with pytest.raises(rc.ReachError, match="strictly increasing"):
+        rc.reach(model, VDP_X0, [0.0, 0.5, 0.5])
+    with pytest.raises(rc.ReachError, match="NaN"):
+        rc.reach(model, VDP_X0, [0.0, np.nan])
+    with pytest.raises(rc.ReachError, match="positive"):
+        rc.reach(model, VDP_X0, -1.0)
+    with pytest.raises(rc.ReachError, match="needs inputs"):
+        rc.reach(bicycle(), BIKE_X0, 1.0)
+    with pytest.raises(rc.ReachError, match="inputs must have shape"):
+        rc.reach(bicycle(), BIKE_X0, [0.0, 0.1, 0.2], inputs=np.zeros((3, 3)))
+    with pytest.raises(rc.SetError, match="W has dimension"):
+        rc.reach(bicycle(), BIKE_X0, [0.0, 0.1], inputs=np.zeros((2, 2)), W=rc.Interval([0], [1]))
+    with pytest.raises(rc.OptionsError, match="algorithm"):
+        rc.ReachOptions(algorithm="taylor")
+    with pytest.raises(rc.OptionsError, match="tensor_order=3"):
+        rc.ReachOptions(algorithm="poly", tensor_order=2)
+    with pytest.raises(rc.OptionsError, match="time_step"):
+        rc.ReachOptions(time_step=0.0)
+
+
+def test_explosion_error_names_time_state_term_and_remedy():
+    big = rc.Interval([-3.0, -3.0], [3.0, 3.0])
+    with pytest.raises(rc.ReachError) as info:
+        rc.reach(vanderpol(mu=2.0), big, 10.0, options=rc.ReachOptions(time_step=0.05, max_splits=0))
+    err = info.value
+    text = str(err)
+    assert err.time is not None and "t = " in text
+    assert err.state in ("x", "y") and f"'{err.state}'" in text
+    assert "Try" in text and "time_step" in text
+
+
+# ------------------------------------------------------------ tube API
+def test_tube_api_roundtrip_and_containment(tmp_path, vdp_runs):
+    model, (X, _, _) = vdp_runs
+    tube = rc.reach(model, VDP_X0, VDP_TIMES, options=rc.ReachOptions(time_step=0.02, tensor_order=3))
+    assert len(tube) == VDP_TIMES.size
+    assert tube.at(VDP_TIMES[3]) is tube.time_point_sets[3]
+    mid = tube.at(0.05)  # between samples: a time-interval set
+    assert mid.contains(X[0, 0] * 0 + mid.interval().center)
+    res = tube.contains(VDP_TIMES, X[0])  # y = x: eq. 43 with V = {0}
+    assert res.conformant and res.first_violation is None
+    shifted = X[0].copy()
+    shifted[5:, 1] += 1.0
+    res = tube.contains(VDP_TIMES, shifted, V=rc.Interval([-0.01, -0.01], [0.01, 0.01]))
+    assert not res.conformant and res.first_violation == 5
+    path = tube.save(tmp_path / "tube.npz")
+    loaded = rc.ReachTube.load(path)
+    assert np.allclose(loaded.times, tube.times)
+    for a, b in zip(loaded.time_interval_sets, tube.time_interval_sets):
+        assert np.allclose(a.center, b.center) and np.allclose(a.generators, b.generators)
+    hull = tube.project(["y"]).interval_hull()
+    assert hull.dim == 1
+    with pytest.raises(rc.DataError):
+        rc.ReachTube.load(tmp_path / "missing.npz")
+
+
+def test_tube_plot_writes_png(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    tube = rc.reach(vanderpol(), VDP_X0, 1.0, options=rc.ReachOptions(time_step=0.05))
+    ax = tube.plot(dims=("x", "y"))
+    out = tmp_path / "tube.png"
+    ax.figure.savefig(out)
+    plt.close(ax.figure)
+    assert out.stat().st_size > 1000
