@@ -110,6 +110,22 @@ class CompiledModel:
 # ---------------------------------------------------------------------------
 # public entry point
 # ---------------------------------------------------------------------------
+def _kernel_fingerprint() -> str:
+    """Hash of the kernel sources the generated code calls.
+
+    numba's on-disk cache of the generated module links against the compiled
+    interval kernel; when that kernel changes, the generated module must be
+    rebuilt in a fresh folder or numba reports "unresolved symbol".
+    """
+    import reachconf_kernels
+
+    h = hashlib.sha256()
+    folder = Path(reachconf_kernels.__file__).parent
+    for name in ("interval.py", "__init__.py"):
+        h.update((folder / name).read_bytes())
+    return h.hexdigest()[:16]
+
+
 def model_hash(model, order: int) -> str:
     from reachconf import __version__
 
@@ -117,6 +133,7 @@ def model_hash(model, order: int) -> str:
     for part in (
         GENERATOR_VERSION,
         __version__,
+        _kernel_fingerprint(),
         str(order),
         repr(model.state_names),
         repr(model.input_names),

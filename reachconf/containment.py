@@ -1,0 +1,101 @@
+"""Batch point containment in zonotopes, exact up to a stated tolerance.
+
+A point ``p`` is inside ``Z(c, G)`` iff some ``b`` with ``|b|_inf <= 1 + tol``
+satisfies ``|G b - (p - c)|_inf <= tol * s`` with ``s = max(1, max_i sum_j |G_ij|)``
+(the zonotope norm with a small absolute slack so that degenerate zonotopes
+are handled).  Strategy for many points: reject outside the interval hull,
+in 2-D use the polygon's half-spaces, otherwise run the compiled simplex of
+:mod:`reachconf_kernels.containment`, whose every answer carries a checked
+certificate (a coefficient vector inside, a separating direction outside);
+points without a certificate are decided by one LP each (HiGHS via scipy),
+the reference method.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from reachconf_kernels.containment import contains_batch
+
+__all__ = ["contains_points", "contains_points_lp"]
+
+
+# HiGHS' default feasibility tolerance (1e-7) is far looser than the containment tolerance
+_LP_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
+
+
+def contains_points_lp(c, G, P, tol=1e-9):
+    """Reference: one LP per point (min t s.t. |G b - d| <= slack, |b| <= t)."""
+    from scipy.optimize import linprog
+
+    n, m = G.shape
+    s = max(1.0, float(np.max(np.sum(np.abs(G), axis=1))) if m else 1.0)
+    slack = tol * s
+    out = np.zeros(P.shape[0], dtype=bool)
+    if m == 0:
+        return np.all(np.abs(P - c) <= slack, axis=1)
+    cost = np.zeros(m + 1)
+    cost[-1] = 1.0
+    A_ub = np.vstack([
+        np.hstack([G, np.zeros((n, 1))]),
+        np.hstack([-G, np.zeros((n, 1))]),
+        np.hstack([np.eye(m), -np.ones((m, 1))]),
+        np.hstack([-np.eye(m), -np.ones((m, 1))]),
+    ])  # fmt: skip
+    for k, p in enumerate(P):
+        d = p - c
+        b_ub = np.concatenate([d + slack, -d + slack, np.zeros(2 * m)])
+        res = linprog(cost, A_ub=A_ub, b_ub=b_ub, bounds=[(None, None)] * m + [(0, None)], method="highs",
+                      options=_LP_OPTIONS)  # fmt: skip
+        out[k] = res.status == 0 and res.x[-1] <= 1.0 + tol
+    return out
+
+
+def _contains_2d(c, G, P, tol):
+    from reachconf_kernels.zonotope import compact, polygon
+
+    cc, GG = compact(c, G, 0.0)
+    s = max(1.0, float(np.max(np.sum(np.abs(GG), axis=1))) if GG.shape[1] else 1.0)
+    if GG.shape[1] < 2 or np.linalg.matrix_rank(GG) < 2:
+        return None  # degenerate: let the LP decide
+    V = polygon(cc, GG)
+    E = np.roll(V, -1, axis=0) - V
+    normals = np.column_stack([E[:, 1], -E[:, 0]])  # outward for counter-clockwise vertices
+    norms = np.linalg.norm(normals, axis=1)
+    keep = norms > 1e-10 * s  # edges of ulp length (from tiny generators) have meaningless normals
+    normals = normals[keep] / norms[keep, None]
+    offsets = np.einsum("ij,ij->i", normals, V[keep])
+    # zonotope norm <= 1 + tol  <=>  within the polygon scaled by (1 + tol) about c (+ slack)
+    scaled = offsets + tol * (offsets - normals @ cc) + tol * s
+    return np.all(P @ normals.T <= scaled + 1e-15 * s, axis=1)
+
+
+def contains_points(c, G, P, tol=1e-9):
+    """Boolean per row of ``P``: is the point in ``Z(c, G)`` (up to ``tol``, see module docstring)."""
+    c = np.asarray(c, dtype=float)
+    G = np.asarray(G, dtype=float)
+    P = np.atleast_2d(np.asarray(P, dtype=float))
+    N = P.shape[0]
+    n, m = G.shape
+    s = max(1.0, float(np.max(np.sum(np.abs(G), axis=1))) if m else 1.0)
+    D = P - c
+    r = np.sum(np.abs(G), axis=1)
+    out = np.zeros(N, dtype=bool)
+    cand = np.all(np.abs(D) <= r * (1 + tol) + tol * s, axis=1)
+    if not cand.any():
+        return out
+    if m == 0:
+        out[cand] = True
+        return out
+    if n == 2:
+        res = _contains_2d(c, G, P[cand], tol)
+        if res is not None:
+            out[np.nonzero(cand)[0]] = res
+            return out
+    idx = np.nonzero(cand)[0]
+    status = contains_batch(np.ascontiguousarray(c), np.ascontiguousarray(G), np.ascontiguousarray(P[idx]), float(tol))
+    out[idx[status == 1]] = True
+    rest = idx[status == -1]
+    if rest.size:  # no certificate: decide with the reference LP
+        out[rest] = contains_points_lp(c, G, P[rest], tol)
+    return out

@@ -1,0 +1,448 @@
+"""Zonotope kernels: ``Z = {c + G b | b in [-1, 1]^m}`` with ``c`` (n,) and ``G`` (n, m).
+
+Pure numba functions on float64 arrays.  Operations that are exact in real
+arithmetic (linear map, Minkowski sum, Cartesian product, enclose,
+``quad_map``) are computed in floating point; operations that create boxes
+(interval hull, order reduction, from_interval) round the box outward so the
+result always contains the input.  The reachability kernels add a small
+relative allowance per step for the rounding of the float operations.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+_EPS = 2.220446049250313e-16
+
+
+@njit(cache=True)
+def _up(x):
+    return np.nextafter(x, np.inf)
+
+
+@njit(cache=True)
+def _abs_sum_rows(G):
+    """Row sums of |G| rounded up (sound radius of the interval hull)."""
+    n, m = G.shape
+    r = np.zeros(n)
+    for i in range(n):
+        s = 0.0
+        for j in range(m):
+            s += abs(G[i, j])
+        # sum of m non-negative terms: relative error <= m eps
+        r[i] = _up(s * (1.0 + (m + 1) * _EPS))
+    return r
+
+
+@njit(cache=True)
+def interval_hull(c, G):
+    """Smallest axis-aligned box ``(lo, hi)`` containing Z, rounded outward."""
+    r = _abs_sum_rows(G)
+    n = c.shape[0]
+    lo = np.empty(n)
+    hi = np.empty(n)
+    for i in range(n):
+        lo[i] = np.nextafter(c[i] - r[i], -np.inf)
+        hi[i] = np.nextafter(c[i] + r[i], np.inf)
+    return lo, hi
+
+
+@njit(cache=True)
+def from_interval(lo, hi):
+    """Zonotope of a box; degenerate dimensions get no generator; contains the box."""
+    n = lo.shape[0]
+    c = 0.5 * lo + 0.5 * hi
+    k = 0
+    for i in range(n):
+        if hi[i] > lo[i]:
+            k += 1
+    G = np.zeros((n, k))
+    j = 0
+    for i in range(n):
+        if hi[i] > lo[i]:
+            r = max(hi[i] - c[i], c[i] - lo[i])
+            G[i, j] = _up(r * (1.0 + 2 * _EPS))
+            j += 1
+    return c, G
+
+
+@njit(cache=True)
+def linear_map(M, c, G):
+    """``(M c, M G)`` with plain loops (faster than BLAS calls for the small sizes used here)."""
+    k, n = M.shape
+    m = G.shape[1]
+    c2 = np.zeros(k)
+    G2 = np.zeros((k, m))
+    for i in range(k):
+        acc = 0.0
+        for r in range(n):
+            a = M[i, r]
+            acc += a * c[r]
+            if a != 0.0:
+                for j in range(m):
+                    G2[i, j] += a * G[r, j]
+        c2[i] = acc
+    return c2, G2
+
+
+@njit(cache=True)
+def minkowski_sum(c1, G1, c2, G2):
+    n = c1.shape[0]
+    G = np.empty((n, G1.shape[1] + G2.shape[1]))
+    G[:, : G1.shape[1]] = G1
+    G[:, G1.shape[1] :] = G2
+    return c1 + c2, G
+
+
+@njit(cache=True)
+def add_interval(c, G, lo, hi):
+    cb, Gb = from_interval(lo, hi)
+    return minkowski_sum(c, G, cb, Gb)
+
+
+@njit(cache=True)
+def cartesian_product(c1, G1, c2, G2):
+    n1, n2 = c1.shape[0], c2.shape[0]
+    m1, m2 = G1.shape[1], G2.shape[1]
+    c = np.empty(n1 + n2)
+    c[:n1] = c1
+    c[n1:] = c2
+    G = np.zeros((n1 + n2, m1 + m2))
+    G[:n1, :m1] = G1
+    G[n1:, m1:] = G2
+    return c, G
+
+
+@njit(cache=True)
+def _nonzero_columns(G):
+    m = G.shape[1]
+    keep = np.zeros(m, dtype=np.bool_)
+    for j in range(m):
+        for i in range(G.shape[0]):
+            if G[i, j] != 0.0:
+                keep[j] = True
+                break
+    return keep
+
+
+@njit(cache=True)
+def _girard_split(G, order):
+    """Indices of generators to keep and to box (CORA's Girard selection)."""
+    n = G.shape[0]
+    keep_mask = _nonzero_columns(G)
+    idx = np.nonzero(keep_mask)[0]
+    m = idx.shape[0]
+    if m <= n * order:
+        return idx, idx[:0]
+    n_keep = int(math.floor(n * (order - 1.0)))
+    if n_keep < 0:
+        n_keep = 0
+    score = np.empty(m)
+    for k in range(m):
+        j = idx[k]
+        s1 = 0.0
+        smax = 0.0
+        for i in range(n):
+            a = abs(G[i, j])
+            s1 += a
+            if a > smax:
+                smax = a
+        score[k] = s1 - smax
+    order_idx = np.argsort(-score)
+    return idx[order_idx[:n_keep]], idx[order_idx[n_keep:]]
+
+
+@njit(cache=True)
+def reduce_girard(c, G, order):
+    """Girard's order reduction: keep the generators with the largest ``|g|_1 - |g|_inf``, box the rest.
+
+    One pass for the scores, a partial sort (``np.partition``) for the
+    threshold and one pass that copies kept generators and sums the rest into
+    an outward-rounded box.
+    """
+    n, m = G.shape
+    score = np.empty(m)
+    nonzero = 0
+    for j in range(m):
+        s1 = 0.0
+        smax = 0.0
+        for i in range(n):
+            a = abs(G[i, j])
+            s1 += a
+            if a > smax:
+                smax = a
+        if s1 > 0.0:
+            nonzero += 1
+            score[j] = s1 - smax
+        else:
+            score[j] = -1.0  # zero generator: dropped
+    if nonzero <= n * order:
+        out = np.empty((n, nonzero))
+        k = 0
+        for j in range(m):
+            if score[j] >= 0.0:
+                out[:, k] = G[:, j]
+                k += 1
+        return c.copy(), out
+    n_keep = int(math.floor(n * (order - 1.0)))
+    if n_keep < 0:
+        n_keep = 0
+    thr = np.inf
+    if n_keep > 0:
+        thr = -np.partition(-score, n_keep - 1)[n_keep - 1]  # n_keep-th largest score
+    above = 0
+    for j in range(m):
+        if score[j] > thr:
+            above += 1
+    ties = n_keep - above  # generators with score == thr that may still be kept
+    out = np.empty((n, n_keep + n))
+    box = np.zeros(n)
+    k = 0
+    for j in range(m):
+        sj = score[j]
+        if sj < 0.0:
+            continue
+        if sj > thr or (sj == thr and ties > 0):
+            if sj == thr:
+                ties -= 1
+            out[:, k] = G[:, j]
+            k += 1
+        else:
+            for i in range(n):
+                box[i] += abs(G[i, j])
+    for i in range(n):
+        if box[i] > 0.0:
+            out[:, k] = 0.0
+            out[i, k] = _up(box[i] * (1.0 + (m + 1) * _EPS))
+            k += 1
+    return c.copy(), out[:, :k]
+
+
+@njit(cache=True)
+def reduce_pca(c, G, order):
+    """Like Girard, but the rest is boxed in the frame of its principal axes."""
+    keep, rest = _girard_split(G, order)
+    n = c.shape[0]
+    if rest.shape[0] == 0:
+        out = np.empty((n, keep.shape[0]))
+        for k in range(keep.shape[0]):
+            out[:, k] = G[:, keep[k]]
+        return c.copy(), out
+    R = G[:, rest]
+    cov = R @ R.T
+    w, U = np.linalg.eigh(cov)
+    # box in the rotated frame: U diag(sum |U^T R|) ; U orthonormal up to rounding
+    T = U.T @ R
+    rad = _abs_sum_rows(T)
+    # allowance for U not being exactly orthonormal
+    rad = rad * (1.0 + 1e-12) + 1e-15 * np.max(rad)
+    B = U * rad
+    # the map U (float) of the box: add a tiny axis box for the rounding of U * rad
+    out = np.zeros((n, keep.shape[0] + n))
+    for k in range(keep.shape[0]):
+        out[:, k] = G[:, keep[k]]
+    out[:, keep.shape[0] :] = B
+    # soundness: U U^T = I only approximately; inflate by the orthogonality defect
+    defect = np.max(np.abs(U.T @ U - np.eye(n)))
+    if defect > 0.0:
+        out[:, keep.shape[0] :] *= 1.0 + 4.0 * defect * n
+    return c.copy(), out
+
+
+@njit(cache=True)
+def enclose(c1, G1, c2, G2):
+    """Zonotope enclosing the convex hull of Z1 and Z2 (generators paired by index)."""
+    if G1.shape[1] < G2.shape[1]:
+        return enclose(c2, G2, c1, G1)
+    n = c1.shape[0]
+    m2 = G2.shape[1]
+    m1 = G1.shape[1]
+    out = np.empty((n, 2 * m2 + 1 + (m1 - m2)))
+    for j in range(m2):
+        for i in range(n):
+            out[i, j] = 0.5 * (G1[i, j] + G2[i, j])
+            out[i, m2 + 1 + j] = 0.5 * (G1[i, j] - G2[i, j])
+    for i in range(n):
+        out[i, m2] = 0.5 * (c1[i] - c2[i])
+    out[:, 2 * m2 + 1 :] = G1[:, m2:]
+    return 0.5 * (c1 + c2), out
+
+
+@njit(cache=True)
+def _is_zero(Q):
+    for v in Q.ravel():
+        if v != 0.0:
+            return False
+    return True
+
+
+@njit(cache=True)
+def quad_map(c, G, Q):
+    """Enclosure of ``{(x^T Q_i x)_i | x in Z}``; Q has shape (k, n, n) (CORA's quadMap)."""
+    n = c.shape[0]
+    m = G.shape[1]
+    k = Q.shape[0]
+    Zm = np.empty((n, m + 1))
+    Zm[:, 0] = c
+    Zm[:, 1:] = G
+    ng = m + (m + 1) * m // 2
+    cout = np.zeros(k)
+    Gout = np.zeros((k, ng))
+    for i in range(k):
+        if _is_zero(Q[i]):
+            continue
+        Qh = Zm.T @ (Q[i] @ Zm)
+        cout[i] = Qh[0, 0]
+        for j in range(1, m + 1):
+            cout[i] += 0.5 * Qh[j, j]
+            Gout[i, j - 1] = 0.5 * Qh[j, j]
+        col = m
+        for a in range(m + 1):
+            for b in range(a + 1, m + 1):
+                Gout[i, col] = Qh[a, b] + Qh[b, a]
+                col += 1
+    return cout, Gout
+
+
+@njit(cache=True)
+def quad_map_mixed(c1, G1, c2, G2, Q):
+    """Enclosure of ``{(x^T Q_i y)_i | x in Z1, y in Z2}``."""
+    n = c1.shape[0]
+    m1 = G1.shape[1]
+    m2 = G2.shape[1]
+    k = Q.shape[0]
+    Z1 = np.empty((n, m1 + 1))
+    Z1[:, 0] = c1
+    Z1[:, 1:] = G1
+    Z2 = np.empty((n, m2 + 1))
+    Z2[:, 0] = c2
+    Z2[:, 1:] = G2
+    cout = np.zeros(k)
+    Gout = np.zeros((k, (m1 + 1) * (m2 + 1) - 1))
+    for i in range(k):
+        if _is_zero(Q[i]):
+            continue
+        Qh = Z1.T @ (Q[i] @ Z2)
+        cout[i] = Qh[0, 0]
+        col = 0
+        for a in range(m1 + 1):
+            for b in range(m2 + 1):
+                if a == 0 and b == 0:
+                    continue
+                Gout[i, col] = Qh[a, b]
+                col += 1
+    return cout, Gout
+
+
+@njit(cache=True)
+def support(c, G, d):
+    """``max_{x in Z} d.x``."""
+    s = 0.0
+    for i in range(c.shape[0]):
+        s += d[i] * c[i]
+    for j in range(G.shape[1]):
+        t = 0.0
+        for i in range(c.shape[0]):
+            t += d[i] * G[i, j]
+        s += abs(t)
+    return s
+
+
+@njit(cache=True)
+def bounds_along(c, G, d):
+    """``(min, max)`` of ``d.x`` over Z."""
+    mid = 0.0
+    for i in range(c.shape[0]):
+        mid += d[i] * c[i]
+    rad = 0.0
+    for j in range(G.shape[1]):
+        t = 0.0
+        for i in range(c.shape[0]):
+            t += d[i] * G[i, j]
+        rad += abs(t)
+    return mid - rad, mid + rad
+
+
+@njit(cache=True)
+def compact(c, G, tol):
+    """Delete zero generators and merge parallel ones; the result encloses the input.
+
+    Generators of 2-norm ``<= tol`` are deleted and (near-)parallel ones merged;
+    whatever this drops (the small generators, the non-parallel residual of a
+    merge) is added back as an axis-aligned box, so the result is sound for any
+    ``tol``.
+    """
+    n, m = G.shape
+    norms = np.zeros(m)
+    for j in range(m):
+        s = 0.0
+        for i in range(n):
+            s += G[i, j] * G[i, j]
+        norms[j] = math.sqrt(s)
+    out = np.zeros((n, m + n))
+    box = np.zeros(n)
+    used = np.zeros(m, dtype=np.bool_)
+    k = 0
+    for j in range(m):
+        if used[j]:
+            continue
+        used[j] = True
+        if norms[j] <= tol:
+            for i in range(n):
+                box[i] += abs(G[i, j])
+            continue
+        g = G[:, j].copy()
+        uj = G[:, j] / norms[j]
+        for l in range(j + 1, m):
+            if used[l] or norms[l] <= tol:
+                continue
+            dot = 0.0
+            for i in range(n):
+                dot += uj[i] * G[i, l]
+            if abs(abs(dot) - norms[l]) <= 1e-12 * norms[l]:
+                # G_l = dot * uj + r with a tiny residual r: merge dot * uj, box |r|
+                adot = abs(dot)
+                for i in range(n):
+                    par = dot * uj[i]
+                    g[i] += adot * uj[i]
+                    box[i] += abs(G[i, l] - par) + 4e-16 * abs(par)
+                used[l] = True
+        out[:, k] = g
+        k += 1
+    for i in range(n):
+        if box[i] > 0.0:
+            out[i, k] = box[i] * (1.0 + 4e-16)
+            k += 1
+    return c.copy(), out[:, :k].copy()
+
+
+@njit(cache=True)
+def polygon(c, G):
+    """Vertices (counter-clockwise) of a 2-D zonotope."""
+    m = G.shape[1]
+    # orient generators to the upper half plane
+    Gs = G.copy()
+    for j in range(m):
+        if Gs[1, j] < 0.0 or (Gs[1, j] == 0.0 and Gs[0, j] < 0.0):
+            Gs[:, j] = -Gs[:, j]
+    ang = np.empty(m)
+    for j in range(m):
+        ang[j] = math.atan2(Gs[1, j], Gs[0, j])
+    idx = np.argsort(ang)
+    # lowest point: c - sum(g)
+    start = c.copy()
+    for j in range(m):
+        start -= Gs[:, j]
+    V = np.empty((2 * m + 1, 2))
+    V[0] = start
+    p = start.copy()
+    for k in range(m):
+        p = p + 2.0 * Gs[:, idx[k]]
+        V[k + 1] = p
+    for k in range(m):
+        p = p - 2.0 * Gs[:, idx[k]]
+        V[m + k + 1] = p
+    return V[: 2 * m]

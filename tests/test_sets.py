@@ -1,0 +1,212 @@
+"""Soundness of zonotope operations by seeded sampling, containment against an LP."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import reachconf
+from reachconf import Interval, SetError, Zonotope
+from reachconf.containment import contains_points_lp
+
+TOL = 1e-9
+
+
+def random_zonotope(rng, n, m, scale=1.0):
+    return Zonotope(rng.normal(size=n) * scale, rng.normal(size=(n, m)) * scale)
+
+
+def extreme_and_inner(Z, rng, k=200):
+    """Extreme points (random sign vectors) and uniform-coefficient points."""
+    m = Z.generators.shape[1]
+    B = np.vstack([rng.choice([-1.0, 1.0], size=(k, m)), rng.uniform(-1, 1, size=(k, m))])
+    return Z.center + B @ Z.generators.T
+
+
+seeds = st.integers(min_value=0, max_value=2**31 - 1)
+dims = st.integers(min_value=1, max_value=5)
+gens = st.integers(min_value=0, max_value=12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seeds, dims, gens)
+def test_linear_map_and_sums_are_sound(seed, n, m):
+    rng = np.random.default_rng(seed)
+    Z = random_zonotope(rng, n, m)
+    A = rng.normal(size=(3, n))
+    P = extreme_and_inner(Z, rng, 50)
+    AZ = A @ Z
+    assert AZ.contains(P @ A.T, tol=TOL).all()
+    Z2 = random_zonotope(rng, n, 3)
+    P2 = extreme_and_inner(Z2, rng, 50)
+    S = Z + Z2
+    assert S.contains(P + P2, tol=TOL).all()
+    box = Interval(-np.abs(rng.normal(size=n)), np.abs(rng.normal(size=n)))
+    Q = box.sample(100, rng)
+    assert (Z + box).contains(P + Q, tol=TOL).all()
+    v = rng.normal(size=n)
+    assert (Z + v).contains(P + v, tol=TOL).all()
+    C = Z.cartesian(Z2)
+    assert C.dim == 2 * n if Z2.dim == n else True
+    assert C.contains(np.hstack([P, P2]), tol=TOL).all()
+
+
+@settings(max_examples=40, deadline=None)
+@given(seeds, dims, st.integers(min_value=1, max_value=30), st.sampled_from([1, 1.5, 2, 3]),
+       st.sampled_from(["girard", "pca"]))  # fmt: skip
+def test_reduce_encloses(seed, n, m, order, method):
+    rng = np.random.default_rng(seed)
+    Z = random_zonotope(rng, n, m)
+    R = Z.reduce(order, method=method)
+    assert R.generators.shape[1] <= max(n * order, m) + n
+    if m > n * order:
+        assert R.order <= order + 1e-12
+    assert R.contains(extreme_and_inner(Z, rng), tol=TOL).all()
+    # the hull of the reduction encloses the hull of the input
+    h, hr = Z.interval(), R.interval()
+    assert np.all(hr.lo <= h.lo + 1e-12) and np.all(hr.hi >= h.hi - 1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seeds, dims, gens, gens)
+def test_enclose_contains_convex_hull(seed, n, m1, m2):
+    rng = np.random.default_rng(seed)
+    Z1, Z2 = random_zonotope(rng, n, m1), random_zonotope(rng, n, m2)
+    E = Z1.enclose(Z2)
+    P1, P2 = extreme_and_inner(Z1, rng, 60), extreme_and_inner(Z2, rng, 60)
+    lam = rng.uniform(0, 1, size=(P1.shape[0], 1))
+    assert E.contains(P1, tol=TOL).all() and E.contains(P2, tol=TOL).all()
+    assert E.contains(lam * P1 + (1 - lam) * P2, tol=TOL).all()
+
+
+@settings(max_examples=30, deadline=None)
+@given(seeds, st.integers(min_value=1, max_value=4), st.integers(min_value=0, max_value=6),
+       st.integers(min_value=1, max_value=3))  # fmt: skip
+def test_quad_map_is_sound(seed, n, m, k):
+    rng = np.random.default_rng(seed)
+    Z = random_zonotope(rng, n, m)
+    Q = rng.normal(size=(k, n, n))
+    R = Z.quad_map(Q)
+    P = extreme_and_inner(Z, rng, 100)
+    images = np.einsum("pi,kij,pj->pk", P, Q, P)
+    assert R.contains(images, tol=TOL).all()
+
+
+@settings(max_examples=40, deadline=None)
+@given(seeds, dims, gens)
+def test_interval_hull_support_and_bounds(seed, n, m):
+    rng = np.random.default_rng(seed)
+    Z = random_zonotope(rng, n, m)
+    P = extreme_and_inner(Z, rng)
+    H = Z.interval()
+    assert H.contains(P).all()
+    d = rng.normal(size=n)
+    s = Z.support(d)
+    lo, hi = Z.bounds_along(d)
+    vals = P @ d
+    assert np.all(vals <= s + 1e-9 * (1 + abs(s))) and np.isclose(hi, s)
+    assert np.all(vals >= lo - 1e-9 * (1 + abs(lo)))
+    # the support is attained by an extreme point
+    b = np.sign(Z.generators.T @ d)
+    assert np.isclose(d @ (Z.center + Z.generators @ b), s)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seeds, dims, gens, st.sampled_from([0.0, 1e-3, 0.5]))
+def test_compact_encloses(seed, n, m, tol):
+    rng = np.random.default_rng(seed)
+    G = rng.normal(size=(n, m))
+    if m >= 2:  # parallel copies, zero columns and tiny columns
+        G = np.hstack([G, 2.5 * G[:, :1], -0.3 * G[:, 1:2], np.zeros((n, 2)), 1e-4 * G[:, :1]])
+    Z = Zonotope(rng.normal(size=n), G)
+    C = Z.compact(tol)
+    assert C.generators.shape[1] <= Z.generators.shape[1] + n
+    assert C.contains(extreme_and_inner(Z, rng), tol=TOL).all()
+
+
+@settings(max_examples=40, deadline=None)
+@given(seeds, st.integers(min_value=0, max_value=15))
+def test_polygon_is_convex_and_encloses(seed, m):
+    rng = np.random.default_rng(seed)
+    Z = random_zonotope(rng, 4, m)
+    V = Z.polygon(dims=(1, 3))
+    P = extreme_and_inner(Z, rng)[:, [1, 3]]
+    if m == 0:
+        assert np.allclose(V, Z.center[[1, 3]])
+        return
+    E = np.roll(V, -1, axis=0) - V
+    cross = E[:, 0] * np.roll(E, -1, axis=0)[:, 1] - E[:, 1] * np.roll(E, -1, axis=0)[:, 0]
+    assert np.all(cross >= -1e-9 * np.max(np.abs(V)) ** 2)  # counter-clockwise, convex
+    Zp = Z.project([1, 3])
+    assert Zp.contains(V, tol=1e-7).all()
+    # every projected point is inside the polygon's half-planes
+    normals = np.column_stack([E[:, 1], -E[:, 0]])
+    offsets = np.einsum("ij,ij->i", normals, V)
+    scale = np.linalg.norm(normals, axis=1) * (1 + np.max(np.abs(V)))
+    assert np.all(P @ normals.T <= offsets + 1e-9 * scale)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seeds, st.integers(min_value=1, max_value=5), st.integers(min_value=1, max_value=10))
+def test_containment_agrees_with_lp_near_boundary(seed, n, m):
+    rng = np.random.default_rng(seed)
+    Z = random_zonotope(rng, n, m)
+    # boundary points pushed slightly in and out along random directions
+    B = rng.choice([-1.0, 1.0], size=(40, m)) * rng.uniform(0.9, 1.0, size=(40, m))
+    P = Z.center + B @ Z.generators.T
+    P = np.vstack([P + 1e-3 * rng.normal(size=P.shape), P * 1.05, P * 0.95, rng.normal(size=(20, n)) * 3])
+    fast = Z.contains(P, tol=1e-9)
+    ref = contains_points_lp(Z.center, Z.generators, P, tol=1e-9)
+    # points within the tolerance band are legitimately ambiguous: compare the others
+    clear = contains_points_lp(Z.center, Z.generators, P, tol=1e-6) == contains_points_lp(
+        Z.center, Z.generators, P, tol=1e-12
+    )
+    assert clear.mean() > 0.9
+    assert np.array_equal(fast[clear], ref[clear])
+
+
+def test_sample_is_inside_and_includes_extremes():
+    rng = np.random.default_rng(0)
+    Z = random_zonotope(rng, 3, 5)
+    S = Z.sample(500, rng)
+    assert S.shape == (500, 3)
+    assert Z.contains(S, tol=TOL).all()
+    # extreme points are on the boundary: some sample reaches the support in a generator-aligned direction
+    H = Z.interval()
+    assert np.isclose(S.max(axis=0), H.hi, rtol=1e-6).any() or np.isclose(S.min(axis=0), H.lo, rtol=1e-6).any()
+
+
+def test_interval_attributes_and_errors():
+    I = Interval([0, -1], [2, 1])
+    assert np.allclose(I.center, [1, 0]) and np.allclose(I.radius, [1, 1]) and I.volume() == pytest.approx(4)
+    with pytest.raises(SetError, match="lo > hi"):
+        Interval([1.0], [0.0])
+    with pytest.raises(SetError, match="NaN"):
+        Interval([np.nan], [1.0])
+    with pytest.raises(SetError, match="generators"):
+        Zonotope([0, 0], np.ones((3, 2)))
+    with pytest.raises(SetError, match="center"):
+        Zonotope([np.inf, 0], np.ones((2, 2)))
+    with pytest.raises(ValueError, match="read-only"):
+        Zonotope([0, 0], np.ones((2, 2))).center[0] = 1.0
+    with pytest.raises(SetError, match="immutable"):
+        Zonotope([0, 0], np.ones((2, 2))).center = np.zeros(2)
+    with pytest.raises(SetError, match="points"):
+        Zonotope([0, 0], np.ones((2, 2))).contains(np.ones((3, 3)))
+
+
+def test_top_level_exports_and_quickstart(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    Z1 = reachconf.Zonotope([0, 0, 0], np.eye(3) * 0.1)
+    Z2 = reachconf.Zonotope([1, 0, 0], np.random.default_rng(1).normal(size=(3, 40)) * 0.05)
+    A = np.array([[1.0, 0.1, 0], [0, 1, 0.1], [0, 0, 1]])
+    Z = (A @ Z1 + Z2).reduce(5)
+    assert Z.order <= 5
+    fig, ax = plt.subplots()
+    Z.plot(ax, dims=(0, 1))
+    fig.savefig(tmp_path / "z.png")
+    assert (tmp_path / "z.png").stat().st_size > 1000
