@@ -55,7 +55,15 @@ class Symbols:
     def __init__(self, symbols: Mapping[str, sp.Symbol]):
         object.__setattr__(self, "_symbols", dict(symbols))
 
+    def __getstate__(self):
+        return self._symbols
+
+    def __setstate__(self, state):
+        object.__setattr__(self, "_symbols", dict(state))
+
     def __getattr__(self, name):
+        if name.startswith("__") or name == "_symbols":
+            raise AttributeError(name)
         try:
             return self._symbols[name]
         except KeyError:
@@ -355,6 +363,17 @@ class Model:
         merged.update({k: new._check_param(k, v) for k, v in params.items()})
         new.params = MappingProxyType(merged)
         return new
+
+    def __getstate__(self):
+        # compiled code and caches stay behind (rebuilt from the disk cache in the new process)
+        state = {k: v for k, v in self.__dict__.items() if not (k.startswith("_compiled_") or k == "_affine_cache")}
+        state["params"] = dict(self.params)
+        return state
+
+    def __setstate__(self, state):
+        state = dict(state)
+        state["params"] = MappingProxyType(state["params"])
+        self.__dict__.update(state)
 
     def compiled(self, order: int = 2):
         """The compiled functions of this model (see :func:`reachconf.codegen.compile_model`).

@@ -70,7 +70,7 @@ def output_enclosure(model, S, u=None):
     Jc = 0.5 * (Jlo + Jhi)[:, : model.n]
     Jr = 0.5 * (Jhi - Jlo)[:, : model.n]
     c, G, rad = interval_matrix_times_zonotope(
-        np.ascontiguousarray(Jc), np.ascontiguousarray(Jr), np.zeros(model.n), np.ascontiguousarray(S.generators)
+        np.ascontiguousarray(Jc), np.ascontiguousarray(Jr), np.zeros(model.n), np.array(S.generators)
     )
     # h(c) itself is a float evaluation: allow its rounding
     rad = rad + 1e-14 * (np.abs(hc) + 1e-300)

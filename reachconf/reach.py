@@ -221,7 +221,7 @@ def _input_table(model, inputs, samples, t_start, sample_of_step, per_step: bool
     if not np.all(np.isfinite(U)):
         row = int(np.nonzero(~np.all(np.isfinite(U), axis=1))[0][0])
         raise ReachError(f"inputs contain NaN or inf (step {row})")
-    return np.ascontiguousarray(U)
+    return np.array(U, order="C")  # writeable copy
 
 
 def _progress(enabled, total, desc):
@@ -336,7 +336,7 @@ def reach(model, X0, times, inputs=None, W=None, options: ReachOptions | None = 
 
     t0 = time.perf_counter()
     branches = []  # (first_step, stop_step, store)
-    pending = [(0, np.ascontiguousarray(Z0.center), np.ascontiguousarray(Z0.generators), 0)]
+    pending = [(0, np.array(Z0.center), np.array(Z0.generators), 0)]  # writeable copies
     splits = 0
     chunk = max(50, S // 50)
     bar = _progress(options.progress, S, f"reach {model.name}")
@@ -349,7 +349,7 @@ def reach(model, X0, times, inputs=None, W=None, options: ReachOptions | None = 
             while k < S:
                 stop = min(S, k + chunk)
                 status, step, bad_state, bad_term, c_fail, G_fail = nl.reach_loop(
-                    c, G, U, dts, Wz.center, np.ascontiguousarray(Wz.generators), params,
+                    c, G, U, dts, np.array(Wz.center), np.array(Wz.generators), params,
                     int(options.taylor_terms), comp.f, comp.jac, comp.hess, comp.hess_iv, third_iv,
                     algorithm, order, float(options.zonotope_order), float(options.intermediate_order),
                     float(options.error_order), reduce_method, int(options.max_error_iterations), me,

@@ -10,11 +10,11 @@ __all__ = ["simulate", "simulate_ivp"]
 
 
 def _prepare(model, x0, times, inputs, disturbances):
-    times = np.asarray(times, dtype=float).reshape(-1)
+    times = np.array(times, dtype=float).reshape(-1)
     if times.size < 2 or not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
         raise DataError("times must be finite, strictly increasing, with at least two entries")
     K = times.size
-    x0 = np.asarray(x0, dtype=float).reshape(-1)
+    x0 = np.array(x0, dtype=float).reshape(-1)
     if x0.shape != (model.n,) or not np.all(np.isfinite(x0)):
         raise DataError(f"x0 must be {model.n} finite values ({model.state_names}), got {np.shape(x0)}")
 
@@ -32,7 +32,7 @@ def _prepare(model, x0, times, inputs, disturbances):
             raise DataError(f"{name} contains NaN or inf")
         if arr.shape[0] == K - 1:
             arr = np.vstack([arr, arr[-1:]])
-        return np.ascontiguousarray(arr)
+        return np.array(arr, order="C")  # writeable copy for the compiled kernels
 
     return x0, times, table(inputs, model.m, "inputs"), table(disturbances, model.q, "disturbances")
 

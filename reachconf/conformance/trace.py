@@ -198,9 +198,10 @@ def case_arrays(model, case):
         except DataError as exc:
             raise DataError(f"test case {case.name!r} does not fit model {model.name!r}: {exc}") from None
         t, U, Y = sel.t, sel.U, sel.Y
-    t = np.ascontiguousarray(t, dtype=float)
-    U = np.ascontiguousarray(np.asarray(U, dtype=float).reshape(t.size, model.m))
-    Y = np.ascontiguousarray(np.asarray(Y, dtype=float).reshape(t.size, model.p))
+    # writeable contiguous copies: the compiled kernels take mutable arrays
+    t = np.array(t, dtype=float)
+    U = np.array(np.asarray(U, dtype=float).reshape(t.size, model.m), order="C")
+    Y = np.array(np.asarray(Y, dtype=float).reshape(t.size, model.p), order="C")
     return t, U, Y
 
 
@@ -372,9 +373,7 @@ def trace_disturbances(model, case, method: str = "perstep", V=None, options: Tr
     ``{0}``).  Synthesis step 1 (eqs. 62–66) takes ``result.disturbance_box()``.
     """
     options = options or TraceOptions()
-    inf = np.full(model.q, np.inf)
-    return trace_conformance(model, case, Interval(-inf, inf) if model.q else None, V, method=method,
-                             options=options, _unbounded=True)  # fmt: skip
+    return trace_conformance(model, case, None, V, method=method, options=options, _unbounded=True)
 
 
 def trace_conformance(model, case, W, V, method: str = "perstep", options: TraceOptions | None = None,

@@ -1,0 +1,5 @@
+"""Test campaigns: the vehicle tracking controller and reference maneuvers.
+
+:mod:`reachconf.campaign.controller` holds the tracking law shared by the
+closed-loop model (sympy) and the campaign simulation (numpy).
+"""

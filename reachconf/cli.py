@@ -1,0 +1,296 @@
+"""Command line: ``reachconf {demo,reach,conform,synth,plot}``.
+
+User errors (bad run file, data, options, sets) print one line and exit
+with status 2; Ctrl-C saves the partial results and exits with 130.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from reachconf.errors import DataError, ReachconfError
+
+__all__ = ["main"]
+
+
+def _write_json(path, obj):
+    from reachconf.io import atomic_write_text
+
+    atomic_write_text(path, json.dumps(obj, indent=2, default=_jsonable))
+
+
+def _jsonable(v):
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, (np.floating, np.integer, np.bool_)):
+        return v.item()
+    if hasattr(v, "to_list"):
+        return v.to_list()
+    return str(v)
+
+
+def _outdir(args) -> Path | None:
+    if args.out is None:
+        return None
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _savefig(fig, path: Path):
+    tmp = path.with_name("." + path.name + ".tmp.png")
+    fig.savefig(tmp, dpi=120)
+    os.replace(tmp, path)
+
+
+# ----------------------------------------------------------------------------- commands
+
+
+def cmd_demo(args):
+    from reachconf.demo import run_demo
+
+    summary = run_demo(args.out or "demo", workers=args.workers)
+    if args.json:
+        _write_json(args.json, summary)
+    return 0
+
+
+def _select_cases(spec, args):
+    suite = spec.suite()
+    if getattr(args, "case", None):
+        names = {c.name for c in suite}
+        missing = [c for c in args.case if c not in names]
+        if missing:
+            raise DataError(f"{spec.suite_path}: no test case {missing}; cases: {sorted(names)}")
+        suite = suite.select(names=args.case)
+    return suite
+
+
+def cmd_reach(args):
+    import matplotlib.pyplot as plt
+
+    from reachconf.conformance.reachset import initial_set
+    from reachconf.reach import reach
+
+    spec = _load(args)
+    suite = _select_cases(spec, args)
+    out = _outdir(args)
+    results = {}
+    for case in suite:
+        X0 = spec.X0 if spec.X0 is not None else initial_set(spec.model, case, spec.V)
+        t0 = time.perf_counter()
+        tube = reach(spec.model, X0, case.t - case.t[0], inputs=case.U if spec.model.m else None, W=spec.W,
+                     options=spec.reach_options)  # fmt: skip
+        entry = {"seconds": time.perf_counter() - t0, "bounds": tube.bounds().tolist(), "splits": tube.splits}
+        if out is not None:
+            entry["npz"] = str(tube.save(out / f"{case.name}_tube.npz"))
+            fig, ax = plt.subplots(figsize=(8, 4))
+            dims = _xy_dims(spec.model)
+            tube.plot(dims=dims, ax=ax, label="reach tube")
+            if all(d in case.signals for d in dims):
+                ax.plot(case.signal(dims[0]), case.signal(dims[1]), "k.", ms=1.5, label="measured")
+            ax.set_xlabel(dims[0])
+            ax.set_ylabel(dims[1])
+            ax.legend()
+            fig.tight_layout()
+            _savefig(fig, out / f"{case.name}_tube.png")
+            plt.close(fig)
+            entry["png"] = str(out / f"{case.name}_tube.png")
+        results[case.name] = entry
+        print(f"{case.name}: reach over {case.duration:g} s in {entry['seconds']:.2f} s")
+    if args.json:
+        _write_json(args.json, results)
+    return 0
+
+
+def _xy_dims(model):
+    names = model.state_names
+    if "X" in names and "Y" in names:
+        return ("X", "Y")
+    if "px" in names and "py" in names:
+        return ("px", "py")
+    return (names[0], names[1] if len(names) > 1 else names[0])
+
+
+def cmd_conform(args):
+    from reachconf.conformance import reachset_conformance, trace_conformance
+
+    spec = _load(args)
+    suite = _select_cases(spec, args)
+    kinds = ["trace", "reachset"] if args.kind == "both" else [args.kind]
+    results = {}
+    for case in suite:
+        entry = {}
+        if "trace" in kinds:
+            if spec.W is None or spec.V is None:
+                raise DataError(f"{spec.path}: trace conformance needs sets.W and sets.V")
+            res = trace_conformance(spec.model, case, spec.W, spec.V, method=spec.trace_method,
+                                    options=spec.trace_options)  # fmt: skip
+            entry["trace"] = {"conformant": res.conformant, "margins": res.margins, "seconds": res.seconds,
+                              "message": res.message}  # fmt: skip
+        if "reachset" in kinds:
+            if spec.W is None or spec.V is None:
+                raise DataError(f"{spec.path}: reachset conformance needs sets.W and sets.V")
+            res = reachset_conformance(spec.model, case, spec.W, spec.V, X0=spec.X0, options=spec.reach_options,
+                                       keep_tube=False)  # fmt: skip
+            entry["reachset"] = {"conformant": res.conformant, "first_violation_time": res.first_violation_time,
+                                 "max_violation": res.max_violation, "seconds": res.seconds,
+                                 "message": res.message}  # fmt: skip
+        results[case.name] = entry
+        verdicts = ", ".join(f"{k}: {'conformant' if v['conformant'] else 'NOT conformant'}" for k, v in entry.items())
+        print(f"{case.name}: {verdicts}")
+    if args.json:
+        _write_json(args.json, results)
+    return 0
+
+
+def cmd_synth(args):
+    import matplotlib.pyplot as plt
+
+    from reachconf.conformance import synthesize_W
+
+    spec = _load(args)
+    if spec.V is None:
+        raise DataError(f"{spec.path}: synthesis needs sets.V")
+    suite = _select_cases(spec, args)
+    res = synthesize_W(spec.model, suite, spec.V, spec.synthesis_options, workers=args.workers or spec.workers,
+                       scheduler=args.scheduler)  # fmt: skip
+    print(res.table())
+    for c in res.cases.values():
+        print(f"  {c.name}: alpha = {c.alpha:.4g}, reachset conformant: {c.conformant}, {c.seconds:.2f} s"
+              + (f" ({c.message})" if c.message else ""))  # fmt: skip
+    if args.json:
+        res.to_json(args.json)
+    out = _outdir(args)
+    if out is not None:
+        res.to_json(out / "synthesis.json")
+        fig = _plot_synthesis(res.to_dict())
+        _savefig(fig, out / "synthesis.png")
+        plt.close(fig)
+    return 0
+
+
+def _plot_synthesis(d):
+    import matplotlib.pyplot as plt
+
+    names = d["disturbances"]
+    fig, axes = plt.subplots(1, len(names), figsize=(2.2 * len(names), 3), squeeze=False)
+    for j, name in enumerate(names):
+        ax = axes[0, j]
+        for i, (g, box) in enumerate(d["groups"].items()):
+            ax.plot([i, i], box[j], lw=6, solid_capstyle="butt", label=g)
+        ax.set_title(name)
+        ax.set_xticks(range(len(d["groups"])), list(d["groups"]), rotation=45, fontsize=7)
+    fig.suptitle("W_RC per group")
+    fig.tight_layout()
+    return fig
+
+
+def cmd_plot(args):
+    import matplotlib.pyplot as plt
+
+    path = Path(args.result)
+    if not path.is_file():
+        raise DataError(f"{path}: no such result file")
+    out = _outdir(args) or path.parent
+    if path.suffix == ".npz":
+        from reachconf.tube import ReachTube
+
+        tube = ReachTube.load(path)
+        fig, ax = plt.subplots(figsize=(8, 4))
+        tube.plot(dims=tuple(args.dims) if args.dims else (0, 1), ax=ax)
+        target = out / (path.stem + ".png")
+    elif path.suffix == ".json":
+        try:
+            d = json.loads(path.read_text())
+        except json.JSONDecodeError as exc:
+            raise DataError(f"{path}: not valid JSON: {exc}") from None
+        if "groups" in d and "disturbances" in d:
+            fig = _plot_synthesis(d)
+        elif "front" in d:
+            from reachconf.conformance.pareto import plot_front_dict
+
+            fig = plot_front_dict(d)
+        else:
+            raise DataError(f"{path}: not a synthesis or Pareto-front result (keys {sorted(d)[:6]})")
+        target = out / (path.stem + ".png")
+    else:
+        raise DataError(f"{path}: unsupported result type {path.suffix!r} (use a tube .npz or a result .json)")
+    _savefig(fig, target)
+    print(f"wrote {target}")
+    return 0
+
+
+def _load(args):
+    from reachconf.runfile import load_run
+
+    return load_run(args.run)
+
+
+# ----------------------------------------------------------------------------- parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="reachconf", description="Reachability-based conformance checking.")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    def common(sp, run=True):
+        if run:
+            sp.add_argument("run", help="TOML run file (model, suite, sets, options)")
+            sp.add_argument("--case", action="append", help="only this test case (repeatable)")
+        sp.add_argument("--json", help="write machine-readable results to this file")
+        sp.add_argument("--out", help="folder for pictures and result files")
+        sp.add_argument("--workers", type=int, default=None, help="local worker processes")
+        sp.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://host:port")
+
+    sp = sub.add_parser("demo", help="run the main job on the shipped example suite")
+    common(sp, run=False)
+    sp.set_defaults(fn=cmd_demo)
+    sp = sub.add_parser("reach", help="reach tubes per test case (npz + X-Y PNG)")
+    common(sp)
+    sp.set_defaults(fn=cmd_reach)
+    sp = sub.add_parser("conform", help="trace and/or reachset conformance per test case")
+    common(sp)
+    sp.add_argument("--kind", choices=("trace", "reachset", "both"), default="both")
+    sp.set_defaults(fn=cmd_conform)
+    sp = sub.add_parser("synth", help="minimal disturbance set: steps 1-3 and the merge (Table 6)")
+    common(sp)
+    sp.set_defaults(fn=cmd_synth)
+    sp = sub.add_parser("plot", help="plot a result (tube .npz, synthesis or Pareto JSON)")
+    sp.add_argument("result")
+    sp.add_argument("--out", help="folder for the PNG (default: next to the result)")
+    sp.add_argument("--dims", nargs=2, type=int, help="dimensions of a tube to plot")
+    sp.set_defaults(fn=cmd_plot)
+    return p
+
+
+def main(argv=None) -> int:
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.fn(args)
+    except KeyboardInterrupt as exc:
+        partial = getattr(exc, "partial", None)
+        if partial is not None and getattr(args, "json", None):
+            _write_json(args.json, {"interrupted": True, "partial": [getattr(r, "to_dict", lambda: r)() if r is not None else None for r in partial]})
+        print("reachconf: interrupted" + (f"; partial results in {args.json}" if partial is not None and getattr(args, "json", None) else ""),
+              file=sys.stderr)  # fmt: skip
+        return 130
+    except ReachconfError as exc:
+        print(f"reachconf: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # unreadable/unwritable files given by the user
+        print(f"reachconf: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,258 @@
+"""Three-step synthesis of a minimal reachset-conformant disturbance box (section 4.3.2).
+
+Per test case:
+
+1. ``W_TC``: the interval hull of the per-step disturbance trace (eqs. 62–66);
+2. ``W_opt``: the smallest-volume box keeping the case trace conformant under
+   V (sequential convex programming on the linearised dynamics, cvxpy);
+3. ``W_RC``: the binary α-search of eq. 68, ``c + α g`` with the centre ``c``
+   and radius ``g`` of ``W_opt``, for the smallest α in [0, 1] that is reachset
+   conformant (eq. 43 with the initial set of eq. 67).
+
+Per group (maneuver): the hull of its cases' ``W_RC`` and the α-search again
+over all of its cases, giving ``W_RC,Mnvr`` (Table 6).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from reachconf.conformance.bounds import minimize_box
+from reachconf.conformance.reachset import reachset_conformance
+from reachconf.conformance.trace import TraceOptions, _as_box, trace_disturbances
+from reachconf.errors import OptionsError
+from reachconf.runner import run_cases
+from reachconf.sets import Interval
+
+__all__ = ["SynthesisOptions", "CaseSynthesis", "SynthesisResult", "synthesize_W", "alpha_search"]
+
+
+@dataclass(frozen=True)
+class SynthesisOptions:
+    """Options of :func:`synthesize_W`.
+
+    Parameters
+    ----------
+    alpha_iterations : int, default 10
+        Bisection steps of the α-search (eq. 68); the result is within
+        ``2**-alpha_iterations`` of the smallest conformant α.
+    optimize : bool, default True
+        Run step 2; if False, step 3 starts from ``W_TC``.
+    merge : bool, default True
+        Compute the per-group ``W_RC,Mnvr``.
+    reach : ReachOptions or None
+        Options of the reachability analysis (default: ``ReachOptions()``).
+    trace : TraceOptions or None
+        Options of the trace-conformance steps.
+    """
+
+    alpha_iterations: int = 10
+    optimize: bool = True
+    merge: bool = True
+    reach: object = None
+    trace: TraceOptions | None = None
+
+    def __post_init__(self):
+        if int(self.alpha_iterations) != self.alpha_iterations or self.alpha_iterations < 1:
+            raise OptionsError(f"alpha_iterations must be a positive integer, got {self.alpha_iterations!r}")
+
+
+@dataclass
+class CaseSynthesis:
+    """Per-case result: the three boxes, α, timings and verdicts."""
+
+    name: str
+    group: str
+    W_TC: Interval
+    W_opt: Interval
+    W_RC: Interval
+    alpha: float
+    conformant: bool
+    seconds: float
+    step_seconds: dict = field(default_factory=dict)
+    trace_conformant: bool = False
+    message: str = ""
+    alpha_trials: list = field(default_factory=list)
+
+    def to_dict(self):
+        return {"name": self.name, "group": self.group, "W_TC": self.W_TC.to_list(), "W_opt": self.W_opt.to_list(),
+                "W_RC": self.W_RC.to_list(), "alpha": self.alpha, "conformant": self.conformant,
+                "trace_conformant": self.trace_conformant, "seconds": self.seconds,
+                "step_seconds": self.step_seconds, "message": self.message,
+                "alpha_trials": self.alpha_trials}  # fmt: skip
+
+
+@dataclass
+class SynthesisResult:
+    """Outcome of :func:`synthesize_W`.
+
+    Attributes
+    ----------
+    cases : dict name -> CaseSynthesis
+    groups : dict group -> Interval
+        ``W_RC,Mnvr`` per group (Table 6).
+    group_alpha : dict group -> float
+    group_conformant : dict group -> bool
+    V : Interval
+    disturbance_names : tuple of str
+    seconds : float
+    """
+
+    cases: dict
+    groups: dict
+    group_alpha: dict
+    group_conformant: dict
+    V: Interval
+    disturbance_names: tuple
+    seconds: float
+    group_seconds: dict = field(default_factory=dict)
+
+    def to_dict(self):
+        return {
+            "disturbances": list(self.disturbance_names),
+            "V": self.V.to_list(),
+            "cases": {k: c.to_dict() for k, c in self.cases.items()},
+            "groups": {g: W.to_list() for g, W in self.groups.items()},
+            "group_alpha": self.group_alpha,
+            "group_conformant": self.group_conformant,
+            "group_seconds": self.group_seconds,
+            "seconds": self.seconds,
+        }
+
+    def to_json(self, path=None, indent=2) -> str:
+        """JSON text of the result; written atomically to ``path`` if given."""
+        text = json.dumps(self.to_dict(), indent=indent, default=float)
+        if path is not None:
+            from reachconf.io import atomic_write_text
+
+            atomic_write_text(path, text)
+        return text
+
+    def table(self, digits: int = 4) -> str:
+        """Table 6 style: one row per group, one ``[lo, hi]`` column per disturbance."""
+        names = list(self.disturbance_names)
+        head = "| group | " + " | ".join(names) + " | α | conformant |"
+        rows = [head, "|" + "---|" * (len(names) + 3)]
+        for g, W in self.groups.items():
+            cells = [f"[{lo:.{digits}g}, {hi:.{digits}g}]" for lo, hi in zip(W.lo, W.hi)]
+            rows.append(f"| {g} | " + " | ".join(cells) + f" | {self.group_alpha[g]:.4g} | {self.group_conformant[g]} |")
+        return "\n".join(rows)
+
+    def __str__(self):
+        return self.table()
+
+
+def _scaled(c, g, alpha) -> Interval:
+    return Interval(c - alpha * g, c + alpha * g)
+
+
+def alpha_search(check, W: Interval, iterations: int = 10):
+    """Binary search (eq. 68) for the smallest α in [0, 1] with ``check(c + α g)`` true.
+
+    ``check(Interval) -> bool``.  Returns ``(alpha, box, conformant, trials)``;
+    if even α = 1 fails, ``conformant`` is False and α = 1.
+    """
+    c, g = W.center, W.radius
+    trials = []
+    ok = check(W)
+    trials.append((1.0, bool(ok)))
+    if not ok:
+        return 1.0, W, False, trials
+    lo, hi = 0.0, 1.0
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        ok = check(_scaled(c, g, mid))
+        trials.append((mid, bool(ok)))
+        if ok:
+            hi = mid
+        else:
+            lo = mid
+    return hi, _scaled(c, g, hi), True, trials
+
+
+def _reach_ok(model, case, W, V, options) -> bool:
+    return reachset_conformance(model, case, W, V, options=options.reach, keep_tube=False,
+                                violation_distance=False).conformant  # fmt: skip
+
+
+def _synth_case(job) -> CaseSynthesis:
+    model, case, V, options = job
+    topts = options.trace or TraceOptions()
+    t_start = time.perf_counter()
+    steps = {}
+    t0 = time.perf_counter()
+    start = trace_disturbances(model, case, method="perstep", V=V, options=topts)
+    W_TC = start.disturbance_box()
+    steps["step1"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    trace_ok = False
+    W_opt = W_TC
+    if options.optimize:
+        W_opt, res = minimize_box(model, case, V, W_TC, start, options=topts)
+        trace_ok = bool(res.conformant)
+    steps["step2"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    message = ""
+    alpha, W_RC, ok, trials = alpha_search(lambda W: _reach_ok(model, case, W, V, options), W_opt,
+                                           options.alpha_iterations)  # fmt: skip
+    if not ok:
+        res = reachset_conformance(model, case, W_opt, V, options=options.reach, keep_tube=False)
+        message = res.message or f"not reachset conformant at α = 1 (first violation at t = {res.first_violation_time})"
+    steps["step3"] = time.perf_counter() - t0
+    return CaseSynthesis(case.name, case.group, W_TC, W_opt, W_RC, alpha, ok, time.perf_counter() - t_start, steps,
+                         trace_ok, message, trials)  # fmt: skip
+
+
+def _check_job(job) -> bool:
+    model, case, W, V, options = job
+    return _reach_ok(model, case, W, V, options)
+
+
+def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, workers=None, scheduler=None,
+                 progress=None) -> SynthesisResult:  # fmt: skip
+    """Minimal reachset-conformant disturbance boxes per case and per group (section 4.3.2).
+
+    Parameters
+    ----------
+    model : Model
+    suite : TestSuite
+    V : Interval
+        Measurement-error box.
+    options : SynthesisOptions
+    workers, scheduler : see :func:`reachconf.runner.run_cases`
+
+    Returns
+    -------
+    SynthesisResult
+    """
+    options = options or SynthesisOptions()
+    t_all = time.perf_counter()
+    V_lo, V_hi = _as_box(V, model.p, "V")
+    Vbox = Interval(V_lo, V_hi)
+    cases = list(suite)
+    jobs = [(model, case, Vbox, options) for case in cases]
+    per_case = run_cases(_synth_case, jobs, workers=workers, scheduler=scheduler, desc="synthesis", progress=progress)
+    result_cases = {c.name: c for c in per_case}
+    groups, galpha, gok, gsec = {}, {}, {}, {}
+    if options.merge:
+        by_group: dict = {}
+        for case, cs in zip(cases, per_case):
+            by_group.setdefault(case.group, []).append((case, cs))
+        for g, members in by_group.items():
+            t0 = time.perf_counter()
+            lo = np.min([cs.W_RC.lo for _, cs in members], axis=0)
+            hi = np.max([cs.W_RC.hi for _, cs in members], axis=0)
+            hull = Interval(lo, hi)
+
+            def check(W, members=members):
+                jobs = [(model, case, W, Vbox, options) for case, _ in members]
+                return all(run_cases(_check_job, jobs, workers=workers, scheduler=scheduler, progress=False))
+
+            alpha, W, ok, _ = alpha_search(check, hull, options.alpha_iterations)
+            groups[g], galpha[g], gok[g], gsec[g] = W, alpha, ok, time.perf_counter() - t0
+    return SynthesisResult(result_cases, groups, galpha, gok, Vbox, tuple(model.disturbance_names),
+                           time.perf_counter() - t_all, gsec)  # fmt: skip

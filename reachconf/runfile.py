@@ -1,0 +1,152 @@
+"""TOML run files for the command line: model, parameters, sets, options and the test suite.
+
+Example::
+
+    model = "bicycle_closed_loop"      # built-in name or "package.module:attribute"
+    suite = "suite"                    # folder, relative to this file
+    [params]                           # optional parameter overrides
+    c_f = 9.7
+    [sets]                             # intervals as [lo, hi] per channel, in the model's order
+    W = [[-0.05, 0.05], [-0.05, 0.05], [-0.01, 0.01], [-0.1, 0.1], [-0.1, 0.1], [-0.05, 0.05]]
+    V = [[-0.02, 0.02], ...]
+    X0 = [[...], ...]                  # optional; default eq. 67 (first sample ⊕ V)
+    [reach]                            # ReachOptions fields
+    time_step = 0.02
+    [trace]                            # TraceOptions fields, plus method = "perstep" | "optctrl"
+    method = "perstep"
+    [synthesis]                        # SynthesisOptions fields
+    alpha_iterations = 10
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from reachconf.errors import DataError, ReachconfError
+from reachconf.sets import Interval
+
+__all__ = ["RunSpec", "load_run", "resolve_model"]
+
+_KEYS = {"model", "suite", "params", "sets", "reach", "trace", "synthesis", "description", "workers", "diagnose"}
+
+
+@dataclass
+class RunSpec:
+    """A parsed run file."""
+
+    path: Path
+    model: object
+    suite_path: Path
+    W: Interval | None
+    V: Interval | None
+    X0: Interval | None
+    reach_options: object
+    trace_method: str
+    trace_options: object
+    synthesis_options: object
+    workers: int | None
+    raw: dict
+
+    def suite(self):
+        from reachconf.io import load_suite
+
+        return load_suite(self.suite_path, model=self.model)
+
+
+def resolve_model(name: str, params=None, where="model"):
+    """A built-in model by name or ``module:attribute`` (a Model or a function returning one)."""
+    from reachconf.model import Model
+
+    if not isinstance(name, str) or not name:
+        raise DataError(f"{where}: model must be a non-empty string")
+    if ":" in name:
+        mod_name, attr = name.split(":", 1)
+        try:
+            obj = getattr(importlib.import_module(mod_name), attr)
+        except (ImportError, AttributeError) as exc:
+            raise DataError(f"{where}: cannot load model {name!r}: {exc}") from None
+        model = obj() if callable(obj) and not isinstance(obj, Model) else obj
+        if not isinstance(model, Model):
+            raise DataError(f"{where}: {name!r} is not a reachconf.Model")
+    else:
+        from reachconf.models import get_model
+
+        model = get_model(name)
+    if params:
+        model = model.with_params(**params)
+    return model
+
+
+def _interval(value, dim, where) -> Interval:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise DataError(f"{where}: must be a list of [lo, hi] pairs of numbers") from None
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise DataError(f"{where}: must be a list of [lo, hi] pairs, got shape {arr.shape}")
+    if arr.shape[0] != dim:
+        raise DataError(f"{where}: has {arr.shape[0]} intervals, the model needs {dim}")
+    try:
+        return Interval(arr[:, 0], arr[:, 1])
+    except ReachconfError as exc:
+        raise DataError(f"{where}: {exc}") from None
+
+
+def _options(cls, table, where, drop=()):
+    table = {k: v for k, v in dict(table or {}).items() if k not in drop}
+    fields = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(table) - fields)
+    if unknown:
+        raise DataError(f"{where}: unknown options {unknown}; allowed: {sorted(fields)}")
+    try:
+        return cls(**table)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"{where}: {exc}") from None
+
+
+def load_run(path) -> RunSpec:
+    """Parse and validate a run file (every error names the file and key)."""
+    from reachconf.conformance.synthesis import SynthesisOptions
+    from reachconf.conformance.trace import TraceOptions
+    from reachconf.reach import ReachOptions
+
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"{path}: run file does not exist")
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise DataError(f"{path}: invalid TOML: {exc}") from None
+    unknown = sorted(set(raw) - _KEYS)
+    if unknown:
+        raise DataError(f"{path}: unknown keys {unknown}; allowed: {sorted(_KEYS)}")
+    if "model" not in raw:
+        raise DataError(f"{path}: missing key 'model'")
+    model = resolve_model(raw["model"], raw.get("params"), where=f"{path}: model")
+    if "suite" not in raw:
+        raise DataError(f"{path}: missing key 'suite' (folder of test cases)")
+    suite_path = (path.parent / raw["suite"]).resolve()
+    sets = raw.get("sets", {})
+    unknown = sorted(set(sets) - {"W", "V", "X0"})
+    if unknown:
+        raise DataError(f"{path}: [sets] unknown sets {unknown}; allowed: W, V, X0")
+    W = _interval(sets["W"], model.q, f"{path}: sets.W") if "W" in sets else None
+    V = _interval(sets["V"], model.p, f"{path}: sets.V") if "V" in sets else None
+    X0 = _interval(sets["X0"], model.n, f"{path}: sets.X0") if "X0" in sets else None
+    reach_opts = _options(ReachOptions, raw.get("reach"), f"{path}: [reach]")
+    trace_tab = dict(raw.get("trace", {}))
+    method = trace_tab.get("method", "perstep")
+    if method not in ("perstep", "optctrl"):
+        raise DataError(f"{path}: trace.method must be 'perstep' or 'optctrl', got {method!r}")
+    trace_opts = _options(TraceOptions, trace_tab, f"{path}: [trace]", drop=("method",))
+    synth_tab = dict(raw.get("synthesis", {}))
+    synth_opts = _options(SynthesisOptions, synth_tab, f"{path}: [synthesis]")
+    synth_opts = dataclasses.replace(synth_opts, reach=reach_opts, trace=trace_opts)
+    workers = raw.get("workers")
+    return RunSpec(path, model, suite_path, W, V, X0, reach_opts, method, trace_opts, synth_opts, workers, raw)
