@@ -75,7 +75,8 @@ def atomic_write_text(path, text: str) -> None:
     _atomic_write_bytes(Path(path), text.encode("utf-8"))
 
 
-def _check_signals(where: str, t, U, Y, input_names, output_names):
+def _check_signals(where: str, t, U, Y, input_names, output_names, first_row: int = 1):
+    """Validate shapes and values; ``first_row`` is the row number of sample 0 in messages (2 in a CSV)."""
     t = np.asarray(t, dtype=float)
     U = np.asarray(U, dtype=float)
     Y = np.asarray(Y, dtype=float)
@@ -94,11 +95,13 @@ def _check_signals(where: str, t, U, Y, input_names, output_names):
         bad = ~np.isfinite(arr)
         if bad.any():
             r, c = np.argwhere(bad)[0]
-            raise DataError(f"{where}: row {r + 1}, column {names[c]!r}: value is {arr[r, c]} (NaN/inf not allowed)")
+            raise DataError(f"{where}: row {r + first_row}, column {names[c]!r}: value is {arr[r, c]} "
+                            "(NaN/inf not allowed)")  # fmt: skip
     dt = np.diff(t)
     if np.any(dt <= 0):
         r = int(np.argmax(dt <= 0))
-        raise DataError(f"{where}: row {r + 2}, column 't': time is not strictly increasing ({t[r]} then {t[r + 1]})")
+        raise DataError(f"{where}: row {r + first_row + 1}, column 't': time is not strictly increasing "
+                        f"({t[r]} then {t[r + 1]})")  # fmt: skip
     return t, U, Y
 
 
@@ -407,7 +410,7 @@ def load_case(path, inputs=None, outputs=None, extras=None, group="default", ren
     where = str(path)
     U = np.column_stack([cols[k] for k in inputs]) if inputs else np.zeros((K, 0))
     Y = np.column_stack([cols[k] for k in outputs]) if outputs else np.zeros((K, 0))
-    t, U, Y = _check_signals(where, cols["t"], U, Y, inputs, outputs)
+    t, U, Y = _check_signals(where, cols["t"], U, Y, inputs, outputs, first_row=2 if suffix == ".csv" else 1)
     for k in extras:
         bad = ~np.isfinite(cols[k])
         if bad.any():

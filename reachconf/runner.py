@@ -15,7 +15,7 @@ from tqdm.auto import tqdm
 
 from reachconf.errors import OptionsError, ReachconfError
 
-__all__ = ["run_cases", "Interrupted"]
+__all__ = ["run_cases", "process_pool", "Interrupted"]
 
 
 class Interrupted(ReachconfError, KeyboardInterrupt):
@@ -32,7 +32,15 @@ def _progress(total, desc, disable):
     return tqdm(total=total, desc=desc, unit="case", disable=disable, leave=False)
 
 
-def run_cases(fn, jobs, workers=None, scheduler=None, desc="cases", progress=None):
+def process_pool(workers: int):
+    """A process pool to pass to several :func:`run_cases` calls (saves the worker start-up each time)."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn" if os.name == "nt" else "forkserver")
+    return ProcessPoolExecutor(max_workers=int(workers), mp_context=ctx)
+
+
+def run_cases(fn, jobs, workers=None, scheduler=None, desc="cases", progress=None, executor=None):
     """Apply ``fn`` to every job and return the results in job order.
 
     Parameters
@@ -46,6 +54,8 @@ def run_cases(fn, jobs, workers=None, scheduler=None, desc="cases", progress=Non
     scheduler : str or dask.distributed.Client, optional
         ``"tcp://host:port"`` of a Dask scheduler, or a Client; needs the
         ``reachconf[dask]`` extra.
+    executor : concurrent.futures.Executor, optional
+        Run on this pool (see :func:`process_pool`) instead of starting one.
     progress : bool, optional
         Show a progress bar (default: when there is more than one job and
         ``REACHCONF_PROGRESS`` is not ``0``).
@@ -58,8 +68,11 @@ def run_cases(fn, jobs, workers=None, scheduler=None, desc="cases", progress=Non
     try:
         if scheduler is not None:
             _run_dask(fn, jobs, scheduler, results, bar)
+        elif executor is not None and len(jobs) > 1:
+            _run_on(executor, fn, jobs, results, bar)
         elif workers and workers > 1 and len(jobs) > 1:
-            _run_processes(fn, jobs, int(workers), results, bar)
+            with process_pool(min(int(workers), len(jobs))) as pool:
+                _run_on(pool, fn, jobs, results, bar)
         else:
             for i, job in enumerate(jobs):
                 results[i] = fn(job)
@@ -71,20 +84,16 @@ def run_cases(fn, jobs, workers=None, scheduler=None, desc="cases", progress=Non
     return results
 
 
-def _run_processes(fn, jobs, workers, results, bar):
-    import multiprocessing as mp
-
-    ctx = mp.get_context("spawn" if os.name == "nt" else "forkserver")
-    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=ctx) as pool:
-        futures = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
-        try:
-            for fut in as_completed(futures):
-                results[futures[fut]] = fut.result()
-                bar.update()
-        except BaseException:
-            for fut in futures:
-                fut.cancel()
-            raise
+def _run_on(pool, fn, jobs, results, bar):
+    futures = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
+    try:
+        for fut in as_completed(futures):
+            results[futures[fut]] = fut.result()
+            bar.update()
+    except BaseException:
+        for fut in futures:
+            fut.cancel()
+        raise
 
 
 def _run_dask(fn, jobs, scheduler, results, bar):

@@ -67,6 +67,9 @@ class Interval:
     def __setattr__(self, name, value):
         raise SetError("Interval is immutable")
 
+    def __reduce__(self):
+        return (Interval, (np.array(self.lo), np.array(self.hi)))
+
     @property
     def dim(self) -> int:
         return self.lo.size
@@ -201,6 +204,9 @@ class Zonotope:
 
     def __setattr__(self, name, value):
         raise SetError("Zonotope is immutable")
+
+    def __reduce__(self):
+        return (Zonotope, (np.array(self.center), np.array(self.generators)))
 
     @classmethod
     def _new(cls, c, G) -> "Zonotope":

@@ -105,12 +105,23 @@ def test_minimize_box_shrinks_and_is_verified(model, suite):
     _independent_check(model, case, res, box, V_SET)
 
 
-def test_minimal_trace_bounds_inside_true_box(model, suite):
+def test_minimal_trace_bounds_beat_true_box(model, suite):
+    """The per-case boxes minimise the sum of normalised widths, so none is worse than W* by that measure.
+
+    (On the bicycle, w1 is weakly observable through noisy vx: a box may trade a
+    wider w1 for narrower w2/w3 and leave W* on one channel; tests/test_synthesis.py
+    checks "inside W*" on a model whose channels are all well excited.)
+    """
+    from reachconf.conformance.bounds import _case_box
+    from reachconf.conformance.trace import TraceOptions as TO
+
     box = rc.minimal_trace_bounds(model, suite, V=V_SET, method="optctrl")
-    tol = 0.02
-    assert np.all(box.lo >= W_STAR.lo - tol) and np.all(box.hi <= W_STAR.hi + tol)
     for case in suite:
         assert trace_conformance(model, case, box, V_SET, method="optctrl").conformant
+        scale = np.ptp(trace_disturbances(model, case).W_trace, axis=0)
+        lo, hi = _case_box((model, case, V_SET, "optctrl", "W", TO()))
+        assert np.sum((hi - lo) / scale) <= np.sum((W_STAR.hi - W_STAR.lo) / scale) * 1.01
+        assert np.all(lo >= box.lo) and np.all(hi <= box.hi)
 
 
 def test_minimal_trace_bounds_for_V():
@@ -121,8 +132,12 @@ def test_minimal_trace_bounds_for_V():
     noise = rng.uniform(-0.03, 0.03, size=X.shape)
     suite = TestSuite([TestCase("n", "g", t, np.zeros((t.size, 0)), X + noise, (), ("x",))])
     V = rc.minimal_trace_bounds(m, suite, solve_for="V")
-    assert np.all(V.hi <= 0.03 + 1e-3) and np.all(V.lo >= -0.03 - 1e-3)
+    # the true noise box is feasible, so the minimal one is not wider (up to the verification margin);
+    # its position may shift, as x0 is free
+    assert np.all(V.hi - V.lo <= np.ptp(noise) * 1.03)
     assert np.all(V.hi - V.lo >= np.ptp(noise) * 0.5)
+    zero = rc.Interval(np.zeros(0), np.zeros(0))
+    assert trace_conformance(m, suite[0], zero, V, method="optctrl").conformant
 
 
 def test_bad_input(model, suite):

@@ -25,7 +25,7 @@ from reachconf.conformance.bounds import minimize_box
 from reachconf.conformance.reachset import reachset_conformance
 from reachconf.conformance.trace import TraceOptions, _as_box, trace_disturbances
 from reachconf.errors import OptionsError
-from reachconf.runner import run_cases
+from reachconf.runner import process_pool, run_cases
 from reachconf.sets import Interval
 
 __all__ = ["SynthesisOptions", "CaseSynthesis", "SynthesisResult", "synthesize_W", "alpha_search"]
@@ -234,8 +234,17 @@ def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, worke
     V_lo, V_hi = _as_box(V, model.p, "V")
     Vbox = Interval(V_lo, V_hi)
     cases = list(suite)
+    pool = process_pool(min(int(workers), len(cases))) if workers and workers > 1 and scheduler is None else None
+    try:
+        return _synthesize(model, cases, Vbox, options, pool, scheduler, progress, t_all)
+    finally:
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
+
+
+def _synthesize(model, cases, Vbox, options, pool, scheduler, progress, t_all):
     jobs = [(model, case, Vbox, options) for case in cases]
-    per_case = run_cases(_synth_case, jobs, workers=workers, scheduler=scheduler, desc="synthesis", progress=progress)
+    per_case = run_cases(_synth_case, jobs, scheduler=scheduler, desc="synthesis", progress=progress, executor=pool)
     result_cases = {c.name: c for c in per_case}
     groups, galpha, gok, gsec = {}, {}, {}, {}
     if options.merge:
@@ -250,7 +259,7 @@ def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, worke
 
             def check(W, members=members):
                 jobs = [(model, case, W, Vbox, options) for case, _ in members]
-                return all(run_cases(_check_job, jobs, workers=workers, scheduler=scheduler, progress=False))
+                return all(run_cases(_check_job, jobs, scheduler=scheduler, progress=False, executor=pool))
 
             alpha, W, ok, _ = alpha_search(check, hull, options.alpha_iterations)
             groups[g], galpha[g], gok[g], gsec[g] = W, alpha, ok, time.perf_counter() - t0

@@ -1,0 +1,165 @@
+"""Pareto front of conformant disturbance boxes (beyond the report, section 4.3.2's outlook).
+
+A single α (eq. 68) scales every channel of the box together, giving one
+point of the Pareto front of conformant models.  Shrinking one channel at a
+time while the others stay fixed, in different channel orders, gives
+further boxes that are each conformant and none of which is wider than
+another in every channel: a sampled Pareto front.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+
+from reachconf.conformance.synthesis import _check_job, SynthesisOptions
+from reachconf.conformance.trace import _as_box, trace_conformance
+from reachconf.errors import ConformanceError, OptionsError
+from reachconf.runner import run_cases
+from reachconf.sets import Interval
+
+__all__ = ["ParetoFront", "pareto_front", "plot_front_dict"]
+
+
+@dataclass
+class ParetoFront:
+    """Non-dominated conformant boxes.
+
+    Attributes
+    ----------
+    boxes : list of Interval
+        Each conformant for every case of the suite.
+    orders : list of tuple of int
+        Channel order of the search that produced each box.
+    start : Interval
+        The conformant box the searches started from.
+    disturbance_names : tuple of str
+    check : str
+        "reachset" or "trace".
+    """
+
+    boxes: list
+    orders: list
+    start: Interval
+    disturbance_names: tuple
+    check: str
+
+    @property
+    def widths(self) -> np.ndarray:
+        """(number of boxes, q) channel widths."""
+        return np.array([b.hi - b.lo for b in self.boxes])
+
+    def to_dict(self):
+        return {"disturbances": list(self.disturbance_names), "check": self.check, "start": self.start.to_list(),
+                "front": [{"box": b.to_list(), "order": list(o)} for b, o in zip(self.boxes, self.orders)]}  # fmt: skip
+
+    def to_json(self, path=None) -> str:
+        text = json.dumps(self.to_dict(), indent=2, default=float)
+        if path is not None:
+            from reachconf.io import atomic_write_text
+
+            atomic_write_text(path, text)
+        return text
+
+    def plot(self, ax=None):
+        return plot_front_dict(self.to_dict(), ax=ax)
+
+
+def plot_front_dict(d, ax=None):
+    """Parallel-coordinates plot of the channel widths of each box, normalised by the start box."""
+    import matplotlib.pyplot as plt
+
+    names = d["disturbances"]
+    start = np.array(d["start"])
+    ref = np.where(start[:, 1] > start[:, 0], start[:, 1] - start[:, 0], 1.0)
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(1.2 * len(names) + 3, 3.5))
+    else:
+        fig = ax.figure
+    for k, entry in enumerate(d["front"]):
+        box = np.array(entry["box"])
+        ax.plot(range(len(names)), (box[:, 1] - box[:, 0]) / ref, "o-", label=f"order {entry['order']}")
+    ax.set_xticks(range(len(names)), names)
+    ax.set_ylabel("width / start width")
+    ax.set_title(f"Pareto front of {d['check']}-conformant boxes")
+    ax.legend(fontsize=6)
+    fig.tight_layout()
+    return fig
+
+
+def _trace_job(job):
+    model, case, W, V, options = job
+    return trace_conformance(model, case, W, V, method="optctrl", options=options.trace).conformant
+
+
+def _dominated(w, others):
+    return any(np.all(o <= w + 1e-12) and np.any(o < w - 1e-12) for o in others)
+
+
+def pareto_front(model, suite, V, W_start, check: str = "reachset", iterations: int = 8, orders=None,
+                 options: SynthesisOptions | None = None, workers=None, scheduler=None) -> ParetoFront:  # fmt: skip
+    """Sample the Pareto front of conformant boxes by per-channel shrinking.
+
+    Parameters
+    ----------
+    W_start : Interval
+        A box conformant for every case (e.g. ``SynthesisResult.groups[g]``).
+    check : {"reachset", "trace"}
+        Conformance notion (eq. 43 with eq. 67, or Alg. 1 with Alg. 2).
+    iterations : int
+        Bisection steps per channel.
+    orders : list of sequences of int, optional
+        Channel orders to try; default: the q rotations of ``0..q-1``.
+
+    Returns
+    -------
+    ParetoFront
+        The non-dominated boxes found (each verified conformant).
+    """
+    options = options or SynthesisOptions()
+    if check not in ("reachset", "trace"):
+        raise OptionsError(f"check must be 'reachset' or 'trace', got {check!r}")
+    V_lo, V_hi = _as_box(V, model.p, "V")
+    Vbox = Interval(V_lo, V_hi)
+    W_start = Interval(*_as_box(W_start, model.q, "W_start"))
+    cases = list(suite)
+    q = model.q
+    job_fn = _check_job if check == "reachset" else _trace_job
+
+    def ok(W):
+        jobs = [(model, case, W, Vbox, options) for case in cases]
+        return all(run_cases(job_fn, jobs, workers=workers, scheduler=scheduler, progress=False))
+
+    if not ok(W_start):
+        raise ConformanceError(f"W_start is not {check} conformant for every case; start from a conformant box")
+    if orders is None:
+        orders = [tuple((k + i) % q for i in range(q)) for k in range(q)]
+    c = W_start.center
+    boxes, used = [], []
+    for order in orders:
+        r = W_start.radius.copy()
+        for ch in order:
+            lo, hi = 0.0, 1.0
+            for _ in range(iterations):
+                mid = 0.5 * (lo + hi)
+                trial = r.copy()
+                trial[ch] = r[ch] * mid
+                if ok(Interval(c - trial, c + trial)):
+                    hi = mid
+                else:
+                    lo = mid
+            r[ch] = r[ch] * hi
+        boxes.append(Interval(c - r, c + r))
+        used.append(tuple(order))
+    widths = [b.hi - b.lo for b in boxes]
+    keep = []
+    for i, w in enumerate(widths):
+        others = [widths[j] for j in range(len(widths)) if j != i]
+        if _dominated(w, others):
+            continue
+        if any(np.allclose(w, widths[j]) for j in keep):
+            continue
+        keep.append(i)
+    return ParetoFront([boxes[i] for i in keep], [used[i] for i in keep], W_start, tuple(model.disturbance_names), check)

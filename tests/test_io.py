@@ -1,0 +1,134 @@
+"""Test-suite files: round trips, suite.toml, and every DataError (API and CLI)."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import reachconf as rc
+from reachconf.io import TestCase, TestSuite, load_case, load_suite, save_suite
+
+T = np.round(np.arange(0, 1.0 + 1e-9, 0.1), 10)
+
+
+def make_case(name="c1", group="g"):
+    U = np.column_stack([np.sin(T)])
+    Y = np.column_stack([T, T**2])
+    return TestCase(name, group, T, U, Y, ("u",), ("y1", "y2"), {"u_req": np.cos(T)})
+
+
+def write(path, text):
+    path.write_text(text)
+    return path
+
+
+def test_round_trip_csv_and_npz(tmp_path):
+    suite = TestSuite([make_case("a", "lc"), make_case("b", "dlc")], name="s")
+    for fmt in ("csv", "npz"):
+        folder = save_suite(suite, tmp_path / fmt, fmt=fmt)
+        back = load_suite(folder)
+        assert [c.name for c in back] == ["a", "b"]
+        assert list(back.groups()) == ["lc", "dlc"]
+        for c0, c1 in zip(suite, back):
+            assert c1.input_names == ("u",) and c1.output_names == ("y1", "y2")
+            np.testing.assert_array_equal(c0.t, c1.t)
+            np.testing.assert_array_equal(c0.U, c1.U)
+            np.testing.assert_array_equal(c0.Y, c1.Y)
+            np.testing.assert_array_equal(c0.extras["u_req"], c1.extras["u_req"])
+
+
+def test_suite_toml_groups_rename_units(tmp_path):
+    write(tmp_path / "run1.csv", "time,steer,y1,y2\n0,10,0,0\n0.1,20,1,1\n0.2,30,2,4\n")
+    write(tmp_path / "suite.toml", 'inputs = ["u"]\noutputs = ["y1", "y2"]\n[groups]\n"run1.csv" = "slalom"\n'
+          '[rename]\ntime = "t"\nsteer = "u"\n[units]\nu = "deg"\n')  # fmt: skip
+    suite = load_suite(tmp_path)
+    case = suite[0]
+    assert case.group == "slalom"
+    np.testing.assert_allclose(case.U[:, 0], np.radians([10, 20, 30]))
+    assert suite.select(group="slalom")[0].name == "run1"
+    seg = case.segment(0.05, 0.2)
+    assert seg.t.size == 2
+
+
+def test_model_columns(tmp_path):
+    m = rc.Model(name="m", states=("x",), inputs=("u",), dynamics=lambda s: [s.u - s.x])
+    write(tmp_path / "a.csv", "t,u,x\n0,1,0\n1,1,0.5\n")
+    suite = load_suite(tmp_path, model=m)
+    assert suite[0].input_names == ("u",) and suite[0].output_names == ("x",)
+    write(tmp_path / "a.csv", "t,u,x,extra\n0,1,0,3\n1,1,0.5,3\n")
+    with pytest.raises(rc.DataError, match=r"a.csv.*unknown columns \['extra'\]"):
+        load_suite(tmp_path, model=m)
+    write(tmp_path / "a.csv", "t,u\n0,1\n1,1\n")
+    with pytest.raises(rc.DataError, match=r"a.csv.*missing columns \['x'\]"):
+        load_suite(tmp_path, model=m)
+
+
+BAD = [
+    ("t,y\n0,1\n1,nan\n", r"bad.csv: row 3, column 'y'.*NaN"),
+    ("t,y\n0,1\n1,inf\n", r"bad.csv: row 3, column 'y'.*NaN/inf"),
+    ("t,y\n0,1\n0,2\n", r"bad.csv: row 3, column 't'.*not strictly increasing"),
+    ("t,y\n0,1\n", r"bad.csv.*at least 2 samples"),
+    ("t,y\n0,1\n1,abc\n", r"bad.csv: row 3, column 'y': not a number: 'abc'"),
+    ("t,y\n0,1\n1\n", r"bad.csv: row 3: 1 cells, the header has 2"),
+    ("", r"bad.csv: file is empty"),
+    ("y\n1\n2\n", r"bad.csv: missing column 't'"),
+    ("t,y,y\n0,1,1\n1,2,2\n", r"bad.csv: row 1: duplicate columns"),
+]
+
+
+@pytest.mark.parametrize("text, message", BAD)
+def test_bad_files_name_file_row_column(tmp_path, text, message):
+    write(tmp_path / "good.csv", "t,y\n0,1\n1,2\n")
+    write(tmp_path / "bad.csv", text)
+    with pytest.raises(rc.DataError, match=message):
+        load_suite(tmp_path)
+
+
+def test_wrong_units_and_bad_toml(tmp_path):
+    write(tmp_path / "a.csv", "t,y\n0,1\n1,2\n")
+    write(tmp_path / "suite.toml", '[units]\ny = "furlong"\n')
+    with pytest.raises(rc.DataError, match="unknown unit 'furlong'"):
+        load_suite(tmp_path)
+    write(tmp_path / "suite.toml", "[units\n")
+    with pytest.raises(rc.DataError, match="invalid TOML"):
+        load_suite(tmp_path)
+    write(tmp_path / "suite.toml", 'colour = "red"\n')
+    with pytest.raises(rc.DataError, match="unknown keys"):
+        load_suite(tmp_path)
+    write(tmp_path / "suite.toml", '[groups]\n"missing.csv" = "x"\n')
+    with pytest.raises(rc.DataError, match="files that do not exist"):
+        load_suite(tmp_path)
+
+
+def test_empty_and_missing_folders(tmp_path):
+    with pytest.raises(rc.DataError, match="does not exist"):
+        load_suite(tmp_path / "nope")
+    with pytest.raises(rc.DataError, match="no .csv or .npz"):
+        load_suite(tmp_path)
+    with pytest.raises(rc.DataError, match="unsupported file type"):
+        load_case(write(tmp_path / "x.txt", "t\n"))
+
+
+def test_testcase_validation():
+    with pytest.raises(rc.DataError, match="U must have shape"):
+        TestCase("c", "g", T, np.zeros((T.size, 2)), np.zeros((T.size, 1)), ("u",), ("y",))
+    with pytest.raises(rc.DataError, match="duplicate signal names"):
+        TestCase("c", "g", T, np.zeros((T.size, 1)), np.zeros((T.size, 1)), ("y",), ("y",))
+    with pytest.raises(rc.DataError, match="empty"):
+        TestSuite([])
+    case = make_case()
+    swapped = case.select(("u_req",), ("y1",))
+    np.testing.assert_array_equal(swapped.U[:, 0], np.cos(T))
+    assert "u" in swapped.extras
+
+
+def test_cli_reports_bad_data_in_one_line(tmp_path):
+    write(tmp_path / "suite" / "bad.csv" if (tmp_path / "suite").mkdir() is None else None, "t,X\n0,1\n0,2\n")
+    write(tmp_path / "run.toml", 'model = "vanderpol"\nsuite = "suite"\n[sets]\nV = [[-0.1, 0.1], [-0.1, 0.1]]\n')
+    proc = subprocess.run([sys.executable, "-m", "reachconf.cli", "conform", str(tmp_path / "run.toml")],
+                          capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("reachconf: error:") and "bad.csv" in lines[0]
+    assert "Traceback" not in proc.stderr
