@@ -146,6 +146,8 @@ def load_run(path) -> RunSpec:
         raise DataError(f"{path}: trace.method must be 'perstep' or 'optctrl', got {method!r}")
     trace_opts = _options(TraceOptions, trace_tab, f"{path}: [trace]", drop=("method",))
     synth_tab = dict(raw.get("synthesis", {}))
+    if {"reach", "trace"} & set(synth_tab):
+        raise DataError(f"{path}: [synthesis] cannot hold 'reach'/'trace': use the [reach] and [trace] tables")
     synth_opts = _options(SynthesisOptions, synth_tab, f"{path}: [synthesis]")
     synth_opts = dataclasses.replace(synth_opts, reach=reach_opts, trace=trace_opts)
     workers = raw.get("workers")

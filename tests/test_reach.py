@@ -133,6 +133,36 @@ def test_bicycle_with_disturbances_sound(bike_runs, options):
     _assert_tight(tube, X)
 
 
+# ------------------------------------------- closed-loop bicycle, lane change
+CL_X0 = rc.Interval([-0.05, -0.05, -0.005, 9.95, -0.02, -0.005], [0.05, 0.05, 0.005, 10.05, 0.02, 0.005])
+CL_W = rc.Interval([-0.05, -0.05, -0.01, -0.1, -0.1, -0.05], [0.05, 0.05, 0.01, 0.1, 0.1, 0.05])
+CL_TIMES = np.round(np.arange(0.0, 4.0 + 1e-9, 0.1), 10)
+
+
+@pytest.fixture(scope="module")
+def closed_loop_runs():
+    from reachconf.demo import lane_change_reference
+    from reachconf.models import bicycle_closed_loop
+
+    rng = np.random.default_rng(RNG_SEED + 2)
+    model = bicycle_closed_loop()
+    inputs = lane_change_reference(CL_TIMES)
+    return model, inputs, _simulate_many(model, CL_X0, CL_TIMES, CL_W, inputs, 200, rng, dense=2)
+
+
+@pytest.mark.parametrize(
+    "options",
+    [rc.ReachOptions(algorithm="lin", tensor_order=2, time_step=0.02),
+     rc.ReachOptions(algorithm="poly", time_step=0.02)],
+    ids=["lin2", "poly"],
+)  # fmt: skip
+def test_closed_loop_bicycle_lane_change_sound(closed_loop_runs, options):
+    model, inputs, (X, td, Xd) = closed_loop_runs
+    tube = rc.reach(model, CL_X0, CL_TIMES, inputs=inputs, W=CL_W, options=options)
+    _assert_tube_contains(tube, X, td, Xd)
+    _assert_tight(tube, X)
+
+
 # ----------------------------------------------------------- linear systems
 def test_linear_rotation_matches_closed_form():
     """x' = y, y' = -x: the set at t is the initial box rotated by -t (exactly, up to rounding)."""
