@@ -42,6 +42,9 @@ class SynthesisOptions:
         ``2**-alpha_iterations`` of the smallest conformant α.
     optimize : bool, default True
         Run step 2; if False, step 3 starts from ``W_TC``.
+    step2_decimate : int, default 1
+        Run steps 1–2 on every k-th sample only (the SCP cost grows with the
+        number of samples); step 3 always checks every sample.
     merge : bool, default True
         Compute the per-group ``W_RC,Mnvr``.
     reach : ReachOptions or None
@@ -52,6 +55,7 @@ class SynthesisOptions:
 
     alpha_iterations: int = 10
     optimize: bool = True
+    step2_decimate: int = 1
     merge: bool = True
     reach: object = None
     trace: TraceOptions | None = None
@@ -185,14 +189,15 @@ def _synth_case(job) -> CaseSynthesis:
     t_start = time.perf_counter()
     steps = {}
     t0 = time.perf_counter()
-    start = trace_disturbances(model, case, method="perstep", V=V, options=topts)
+    case12 = _decimate(case, options.step2_decimate)
+    start = trace_disturbances(model, case12, method="perstep", V=V, options=topts)
     W_TC = start.disturbance_box()
     steps["step1"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     trace_ok = False
     W_opt = W_TC
     if options.optimize:
-        W_opt, res = minimize_box(model, case, V, W_TC, start, options=topts)
+        W_opt, res = minimize_box(model, case12, V, W_TC, start, options=topts)
         trace_ok = bool(res.conformant)
     steps["step2"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -205,6 +210,16 @@ def _synth_case(job) -> CaseSynthesis:
     steps["step3"] = time.perf_counter() - t0
     return CaseSynthesis(case.name, case.group, W_TC, W_opt, W_RC, alpha, ok, time.perf_counter() - t_start, steps,
                          trace_ok, message, trials)  # fmt: skip
+
+
+def _decimate(case, k):
+    if int(k) <= 1:
+        return case
+    from reachconf.io import TestCase
+
+    sl = slice(None, None, int(k))
+    return TestCase(case.name, case.group, case.t[sl], case.U[sl], case.Y[sl], case.input_names, case.output_names,
+                    {key: v[sl] for key, v in case.extras.items()})  # fmt: skip
 
 
 def _check_job(job) -> bool:
