@@ -202,6 +202,17 @@ class TestCase:
         return TestCase(f"{self.name}[{t0:g},{t1:g}]", self.group, self.t[keep], self.U[keep], self.Y[keep],
                         self.input_names, self.output_names, {k: v[keep] for k, v in self.extras.items()})  # fmt: skip
 
+    def decimate(self, k: int) -> "TestCase":
+        """Every ``k``-th sample (inputs stay piecewise constant on the coarser grid)."""
+        k = int(k)
+        if k < 1:
+            raise DataError(f"decimation factor must be >= 1, got {k}")
+        if k == 1:
+            return self
+        sl = slice(None, None, k)
+        return TestCase(self.name, self.group, self.t[sl], self.U[sl], self.Y[sl], self.input_names,
+                        self.output_names, {key: v[sl] for key, v in self.extras.items()})  # fmt: skip
+
     def select(self, inputs, outputs) -> "TestCase":
         """Re-arrange the case to the given input/output names (signals may swap roles, e.g. extras -> inputs)."""
         sig = self.signals

@@ -189,7 +189,7 @@ def _synth_case(job) -> CaseSynthesis:
     t_start = time.perf_counter()
     steps = {}
     t0 = time.perf_counter()
-    case12 = _decimate(case, options.step2_decimate)
+    case12 = case.decimate(options.step2_decimate)
     start = trace_disturbances(model, case12, method="perstep", V=V, options=topts)
     W_TC = start.disturbance_box()
     steps["step1"] = time.perf_counter() - t0
@@ -210,16 +210,6 @@ def _synth_case(job) -> CaseSynthesis:
     steps["step3"] = time.perf_counter() - t0
     return CaseSynthesis(case.name, case.group, W_TC, W_opt, W_RC, alpha, ok, time.perf_counter() - t_start, steps,
                          trace_ok, message, trials)  # fmt: skip
-
-
-def _decimate(case, k):
-    if int(k) <= 1:
-        return case
-    from reachconf.io import TestCase
-
-    sl = slice(None, None, int(k))
-    return TestCase(case.name, case.group, case.t[sl], case.U[sl], case.Y[sl], case.input_names, case.output_names,
-                    {key: v[sl] for key, v in case.extras.items()})  # fmt: skip
 
 
 def _check_job(job) -> bool:
