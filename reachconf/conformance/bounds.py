@@ -35,7 +35,7 @@ def _inflate(lo, hi, rel, floor):
 
 
 def minimize_box(model, case, V, W_start: Interval, start: TraceResult, options: TraceOptions | None = None):
-    """Synthesis step 2: the smallest-volume box W keeping the case trace conformant under V.
+    """Synthesis step 2: a small box W (sum of widths normalised by ``W_start``) keeping the case trace conformant.
 
     Parameters
     ----------
@@ -55,8 +55,12 @@ def minimize_box(model, case, V, W_start: Interval, start: TraceResult, options:
     V_lo, V_hi = _as_box(V, model.p, "V")
     # leave 2 % of V for linearisation and integration errors
     vc, vr = 0.5 * (V_lo + V_hi), 0.5 * (V_hi - V_lo)
+    # The volume itself is a degenerate objective (one zero-width channel makes it 0 whatever the others
+    # are), so the SCP minimises the sum of the channel widths normalised by step 1's box: the
+    # analogue of the report's volume minimisation that shrinks every channel it can.
+    scale = np.where(W_start.hi - W_start.lo > 0, W_start.hi - W_start.lo, 1.0)
     lo, hi, x0, W = box_scp(model, t, U, Y, vc - 0.98 * vr, vc + 0.98 * vr, start.x0.copy(), start.W_trace.copy(),
-                            options, objective="volume")  # fmt: skip
+                            options, objective="sum", scale=scale)  # fmt: skip
     name = getattr(case, "name", "case")
     floor = 1e-9 * (1 + np.abs(W_start.hi - W_start.lo))
     for attempt in range(4):
