@@ -19,7 +19,9 @@ can be switched off):
 and between the plant and the controller and the logged measurements:
 
 * sensor offsets (``yaw_offset``, ...) and INS-like white noise
-  (``noise_*`` standard deviations).
+  (``noise_*`` standard deviations, truncated at 2 sigma: a bounded error, as
+  conformance with a finite V presumes; 2 sigma stays inside the report's
+  Table 3 and Table 5 measurement errors).
 
 The logged states are those of the bicycle model, at the rear axle:
 ``X, Y`` (rear-axle position), ``psi``, ``vx``, ``vy`` (rear-axle lateral
@@ -57,7 +59,7 @@ class PlantEffects:
     accel_delay: float = 0.12
     delta_s_nominal: float = TABLE2["delta_s"]
     yaw_offset: float = np.radians(0.3)
-    noise_pos: float = 0.02
+    noise_pos: float = 0.015
     noise_psi: float = np.radians(0.1)
     noise_vel: float = 0.02
     noise_omega: float = np.radians(0.2)
@@ -164,7 +166,7 @@ def simulate_maneuver(ref: dict, effects: PlantEffects = PlantEffects(), gains: 
 
     for k in range(K):
         state = _rear_axle(x, b)
-        meas = state + offset + noise_sd * rng.standard_normal(6)
+        meas = state + offset + noise_sd * np.clip(rng.standard_normal(6), -2.0, 2.0)
         true[k] = state
         if feedforward_only:
             a_cmd = 0.0

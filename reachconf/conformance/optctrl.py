@@ -223,6 +223,8 @@ def box_scp(model, t, U, Y, V_lo, V_hi, x0, W, options, objective="volume", W_fi
     tf, Uf, idx = fine_grid(t, U, r)
     n, q, p = model.n, model.q, model.p
     J = tf.size - 1
+    if r > 1 and W.shape[0] == t.size - 1:  # a start trace on the sample grid: hold it over the sub-steps
+        W = np.repeat(W, r, axis=0)
     X = _simulate(model, x0, tf, Uf, W)
     sx = _scales(model, Y, X)
     dim = p if V_free else q

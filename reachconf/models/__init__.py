@@ -8,6 +8,7 @@ name                        what
 ``bicycle``                 dynamic bicycle model f_B, eqs. 49–52, Table 1
 ``bicycle_actuated``        f_BX with first-order actuators, eqs. 53–58, Table 2
 ``bicycle_closed_loop``     f_B with the tracking controller, eqs. 59/60
+``bicycle_closed_loop_actuated``  the same with f_BX's actuators in the loop
 ``wind_turbine``            reduced NREL 5-MW turbine, eqs. 69, 77, 78, 80
 ``pedestrian_acc``          acceleration-constrained pedestrian, eq. 73
 ``pedestrian_vel``          velocity-constrained pedestrian, eq. 74
@@ -29,6 +30,7 @@ _REGISTRY = {
     "bicycle": "reachconf.models.vehicle",
     "bicycle_actuated": "reachconf.models.vehicle",
     "bicycle_closed_loop": "reachconf.models.vehicle",
+    "bicycle_closed_loop_actuated": "reachconf.models.vehicle",
     "wind_turbine": "reachconf.models.windturbine",
     "pedestrian_acc": "reachconf.models.pedestrian",
     "pedestrian_vel": "reachconf.models.pedestrian",

@@ -25,7 +25,7 @@ import sympy as sp
 
 from reachconf.model import Model
 
-__all__ = ["bicycle", "bicycle_actuated", "bicycle_closed_loop", "TABLE1", "TABLE2"]
+__all__ = ["bicycle", "bicycle_actuated", "bicycle_closed_loop", "bicycle_closed_loop_actuated", "TABLE1", "TABLE2"]
 
 #: Table 1 (cornering stiffnesses as positive magnitudes, see module docstring).
 TABLE1 = {"J_m": 1.57, "L": 2.7, "b_L": 0.57, "c_f": 9.7, "c_r": 25.2, "mu": 1.0, "g": 9.81}
@@ -154,4 +154,47 @@ def bicycle_closed_loop(**params) -> Model:
         params=p,
         dynamics=f,
         description="closed-loop bicycle model with tracking controller (section 4.3, eqs. 59/60)",
+    )
+
+
+def bicycle_closed_loop_actuated(**params) -> Model:
+    """Closed-loop bicycle with the actuators of f_BX between controller and vehicle.
+
+    As :func:`bicycle_closed_loop`, but the controller's commands pass through
+    the first-order actuators of eqs. 57/58 (Table 2 parameters; the steering
+    request is ``delta_cmd / delta_s_nominal``, the acceleration request is sent
+    uncorrected, as in :mod:`reachconf.campaign.plant`).  States and outputs
+    ``X, Y, psi, vx, vy, omega, ax, delta`` (the realised acceleration and
+    steering angle are measured); disturbances ``w1..w6`` on the vehicle ODEs.
+    """
+    from reachconf.campaign.controller import ControllerGains, tracking_law
+
+    gains = ControllerGains()
+    gain_names = [k for k in gains.__dataclass_fields__]
+    p = dict(TABLE1)
+    p.update(TABLE2)
+    p["delta_s_nominal"] = TABLE2["delta_s"]
+    p.update({f"gain_{k}": float(getattr(gains, k)) for k in gain_names})
+    p.update(params)
+
+    def f(s):
+        g = ControllerGains(**{k: s[f"gain_{k}"] for k in gain_names})
+        ax_cmd, delta_cmd = tracking_law(
+            s.X, s.Y, s.psi, s.vx, s.vy, s.omega, s.X_ref, s.Y_ref, s.psi_ref, s.v_ref, s.kappa_ref, g, m=sp
+        )
+        rhs = _bicycle_rhs(s, s.ax, s.delta, 0, 0, 0)
+        w = (s.w1, s.w2, s.w3, s.w4, s.w5, s.w6)
+        return [r + wi for r, wi in zip(rhs, w)] + [
+            -s.k_ax * (s.ax - (ax_cmd + s.ax_off) * s.ax_s),
+            -s.k_delta * (s.delta - (delta_cmd / s.delta_s_nominal + s.delta_off) * s.delta_s),
+        ]
+
+    return Model(
+        name="bicycle_closed_loop_actuated",
+        states=STATES + ("ax", "delta"),
+        inputs=("X_ref", "Y_ref", "psi_ref", "v_ref", "kappa_ref"),
+        disturbances=("w1", "w2", "w3", "w4", "w5", "w6"),
+        params=p,
+        dynamics=f,
+        description="closed-loop bicycle with actuator dynamics (sections 4.1.2 and 4.3)",
     )
