@@ -36,6 +36,10 @@ def process_pool(workers: int):
     """A process pool to pass to several :func:`run_cases` calls (saves the worker start-up each time)."""
     import multiprocessing as mp
 
+    # one thread per worker: BLAS/OpenMP/numba thread pools in every process oversubscribe the cores
+    # (OpenBLAS threads busy-wait), which made 2 workers slower than 1 on this 2-core machine
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
     ctx = mp.get_context("spawn" if os.name == "nt" else "forkserver")
     return ProcessPoolExecutor(max_workers=int(workers), mp_context=ctx)
 

@@ -81,12 +81,15 @@ def reference_path(kind: str, a_lat: float, v: float = 10.0, rate: float = 100.0
     """
     if not (a_lat > 0 and v > 0 and rate > 0):
         raise OptionsError("a_lat, v and rate must be positive")
-    if kind == "SL":  # the envelope adds curvature in the ramps: scale so that the true peak is a_lat
+    # the path's true curvature is y'' / (1 + y'^2)^1.5 (and the slalom envelope adds some): rescale the
+    # design acceleration until the true peak lateral acceleration is a_lat
+    target = a_lat
+    for _ in range(3):
         _, _, _, total = _profile(kind, np.zeros(1), a_lat, v)
         xs = np.linspace(0.0, total, int(total / 0.005) + 1)
         _, dys, ddys, _ = _profile(kind, xs, a_lat, v)
         peak = np.max(np.abs(v**2 * ddys / (1 + dys**2) ** 1.5))
-        a_lat = a_lat * a_lat / peak
+        a_lat = a_lat * target / peak
     _, _, _, total = _profile(kind, np.zeros(1), a_lat, v)
     # move along the path at constant speed v: x(t) from the arc length s(x)
     xs = np.linspace(0.0, total, int(total / 0.005) + 1)

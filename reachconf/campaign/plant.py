@@ -145,8 +145,8 @@ def simulate_maneuver(ref: dict, effects: PlantEffects = PlantEffects(), gains: 
     # request queues for the transport delays (in controller periods)
     n_sd = int(round(effects.steer_delay * rate))
     n_ad = int(round(effects.accel_delay * rate))
-    q_delta = [0.0] * (n_sd + 1)
-    q_ax = [0.0] * (n_ad + 1)
+    q_delta = [0.0] * n_sd  # a request waits n periods before it reaches the actuator
+    q_ax = [0.0] * n_ad
     noise_sd = np.array([effects.noise_pos, effects.noise_pos, effects.noise_psi, effects.noise_vel, effects.noise_vel,
                          effects.noise_omega])  # fmt: skip
     offset = np.array([0, 0, effects.yaw_offset, 0, 0, 0.0])
