@@ -91,7 +91,8 @@ class Containment:
 
 
 def _zono(c, G, ng):
-    return Zonotope(c, G[:, :ng])
+    # kernel output (float64, right shapes): skip re-validation, it was a third of a short reach
+    return Zonotope._new(np.array(c, dtype=np.float64), np.ascontiguousarray(G[:, :ng], dtype=np.float64))
 
 
 class ReachTube:
