@@ -204,6 +204,16 @@ def _synth_case(job) -> CaseSynthesis:
     message = ""
     alpha, W_RC, ok, trials = alpha_search(lambda W: _reach_ok(model, case, W, V, options), W_opt,
                                            options.alpha_iterations)  # fmt: skip
+    if not ok and options.optimize and W_opt is not W_TC:
+        # W_opt is only trace conformant on the samples step 2 saw (and the initial set of eq. 67 differs
+        # from the trace's x0): fall back to the search on the hull of step 1's and step 2's boxes
+        hull = Interval(np.minimum(W_TC.lo, W_opt.lo), np.maximum(W_TC.hi, W_opt.hi))
+        alpha2, W2, ok2, trials2 = alpha_search(lambda W: _reach_ok(model, case, W, V, options), hull,
+                                                options.alpha_iterations)  # fmt: skip
+        trials += [("W_TC hull", True)] + trials2
+        if ok2:
+            alpha, W_RC, ok = alpha2, W2, True
+            message = "W_opt was not reachset conformant; alpha scales the hull of W_TC and W_opt"
     if not ok:
         res = reachset_conformance(model, case, W_opt, V, options=options.reach, keep_tube=False)
         message = res.message or f"not reachset conformant at α = 1 (first violation at t = {res.first_violation_time})"
