@@ -38,10 +38,18 @@ def process_pool(workers: int):
 
     # one thread per worker: BLAS/OpenMP/numba thread pools in every process oversubscribe the cores
     # (OpenBLAS threads busy-wait), which made 2 workers slower than 1 on this 2-core machine
-    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    # (the BLAS variables are read when a worker loads numpy; numba's own variable must not be set here:
+    # numba re-reads NUMBA_* in this process and refuses a change once its threads run)
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
     ctx = mp.get_context("spawn" if os.name == "nt" else "forkserver")
-    return ProcessPoolExecutor(max_workers=int(workers), mp_context=ctx)
+    return ProcessPoolExecutor(max_workers=int(workers), mp_context=ctx, initializer=_one_thread)
+
+
+def _one_thread():
+    import numba
+
+    numba.set_num_threads(1)
 
 
 def run_cases(fn, jobs, workers=None, scheduler=None, desc="cases", progress=None, executor=None):
