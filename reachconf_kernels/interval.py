@@ -15,6 +15,9 @@ bounds are widened by ``TRANSCENDENTAL_ULPS = 4`` ulps plus an absolute
 loses absolute, not relative, accuracy).  Results of sin/cos are clamped to
 ``[-1, 1]``.
 
+Elementwise versions on ``(lo, hi)`` arrays are in
+:mod:`reachconf_kernels.interval_arrays`.
+
 Errors (raised inside compiled code, translated by the Python layer):
 ``ZeroDivisionError`` for a division by an interval containing 0, ``ValueError``
 for ``log``/``sqrt`` of an interval reaching below the domain and ``tan``

@@ -209,3 +209,27 @@ def test_matvec_matmul_contain_exact():
             for j in range(2):
                 exact = mpmath.fsum(mpmath.mpf(A[i, r]) * mpmath.mpf(B[r, j]) for r in range(4))
                 assert inside(Clo[i, j], Chi[i, j], exact)
+
+
+def test_array_versions_match_the_scalar_kernel_and_contain_exact():
+    from reachconf_kernels import interval_arrays as ia
+
+    rng = np.random.default_rng(7)
+    a = np.sort(rng.normal(size=(2, 200)) * 3, axis=0)
+    b = np.sort(rng.normal(size=(2, 200)) * 3, axis=0)
+    b = np.where(b[0] * b[1] > 0, b, b + 10)  # keep divisors away from 0
+    pos = np.abs(a) + 0.1
+    pos = np.sort(pos, axis=0)
+    for name in ("add", "sub", "mul", "div", "min", "max"):
+        lo, hi = getattr(ia, name)(a[0], a[1], b[0], b[1])
+        for i in range(0, 200, 17):
+            assert (lo[i], hi[i]) == getattr(iv, name)(a[0, i], a[1, i], b[0, i], b[1, i])
+    for name, x in (("neg", a), ("sqr", a), ("sqrt", pos), ("exp", a), ("log", pos), ("sin", a), ("cos", a),
+                    ("atan", a), ("abs", a)):  # fmt: skip
+        lo, hi = getattr(ia, name)(x[0], x[1])
+        for i in range(0, 200, 17):
+            assert (lo[i], hi[i]) == getattr(iv, name)(x[0, i], x[1, i])
+    lo, hi = ia.pow(a[0], a[1], 3)
+    for i in range(200):
+        for p in (a[0, i], a[1, i]):
+            assert inside(lo[i], hi[i], mpmath.mpf(p) ** 3)
