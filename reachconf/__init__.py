@@ -49,7 +49,7 @@ _LAZY = {
     "synthesize_W": "reachconf.conformance",
     "SynthesisResult": "reachconf.conformance",
     "pareto_front": "reachconf.conformance",
-    "diagnose": "reachconf.diagnose",
+    "locate_gap": "reachconf.diagnose",
     "GapReport": "reachconf.diagnose",
 }
 

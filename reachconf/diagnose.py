@@ -1,0 +1,172 @@
+"""Sim-to-real gap diagnosis, first part: *where* the gap lies (channels, time segments, conditions).
+
+From the per-step disturbance traces of trace conformance (section 3.2.1),
+:func:`locate_gap` reports
+
+* per disturbance channel, its share of the normalised minimal box (each
+  channel's width divided by the typical size of its disturbance, the median
+  absolute deviation over the suite);
+* in time, the segments where a channel leaves its quiet envelope (median
+  +- ``envelope`` robust standard deviations over the whole suite), per case
+  and per group — segments shared by most cases of a group are reported as
+  "channel, t0-t1 s of every <group>";
+* in operating conditions, the Spearman rank correlation of ``|w|`` with every
+  measured signal and the magnitude of its rate of change.
+
+Which unmodelled effect causes the gap, and how far W shrinks once it is
+modelled (the rest of the diagnosis), is not implemented yet.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from reachconf.conformance.trace import TraceOptions, trace_disturbances
+from reachconf.errors import ConformanceError
+
+__all__ = ["GapReport", "locate_gap"]
+
+
+@dataclass
+class GapReport:
+    """Where the gap lies (see module docstring)."""
+
+    channels: list
+    shares: dict
+    box: dict
+    segments: dict
+    group_segments: dict
+    conditions: dict
+    envelope: dict = field(default_factory=dict)
+
+    def to_dict(self):
+        return {"channels": self.channels, "shares": self.shares, "box": self.box, "envelope": self.envelope,
+                "segments": self.segments, "group_segments": self.group_segments,
+                "conditions": self.conditions}  # fmt: skip
+
+    def to_json(self, path=None) -> str:
+        text = json.dumps(self.to_dict(), indent=2, default=float)
+        if path is not None:
+            from reachconf.io import atomic_write_text
+
+            atomic_write_text(path, text)
+        return text
+
+    def summary(self, top: int = 3) -> str:
+        lines = ["Share of the normalised disturbance box per channel:"]
+        for ch, sh in sorted(self.shares.items(), key=lambda kv: -kv[1]):
+            lines.append(f"  {ch}: {100 * sh:.0f} %")
+        for g, segs in self.group_segments.items():
+            for s in segs[:top]:
+                lines.append(f"  {s['channel']}, {s['t0']:.1f}-{s['t1']:.1f} s of {s['share']:.0%} of the {g} runs")
+        for ch, corr in self.conditions.items():
+            best = sorted(corr.items(), key=lambda kv: -abs(kv[1]))[:top]
+            lines.append(f"  |{ch}| grows with " + ", ".join(f"{k} (rho {v:+.2f})" for k, v in best))
+        return "\n".join(lines)
+
+
+def _segments(mask, t, min_len):
+    out = []
+    k = 0
+    n = mask.size
+    while k < n:
+        if mask[k]:
+            j = k
+            while j + 1 < n and mask[j + 1]:
+                j += 1
+            if t[j + 1 if j + 1 < t.size else j] - t[k] >= min_len:
+                out.append((float(t[k]), float(t[min(j + 1, t.size - 1)])))
+            k = j + 1
+        else:
+            k += 1
+    return out
+
+
+def locate_gap(model, suite, V=None, envelope: float = 4.0, min_duration: float = 0.2, group_share: float = 0.6,
+               options: TraceOptions | None = None) -> GapReport:  # fmt: skip
+    """Locate the sim-to-real gap of ``model`` on ``suite`` (see module docstring).
+
+    Parameters
+    ----------
+    envelope : float
+        Half-width of the quiet envelope in robust standard deviations
+        (1.4826 x the median absolute deviation) around the median; robust, so a
+        long excursion does not widen its own envelope.
+    min_duration : float
+        Shortest excursion reported (s).
+    group_share : float
+        An excursion is reported for a group when at least this share of its
+        cases is outside the envelope at the same time (cases aligned at t = 0).
+    """
+    options = options or TraceOptions()
+    cases = list(suite)
+    if not cases:
+        raise ConformanceError("the suite has no test cases")
+    if model.q == 0:
+        raise ConformanceError(f"model {model.name!r} has no disturbances to locate")
+    traces = {c.name: trace_disturbances(model, c, V=V, options=options) for c in cases}
+    names = list(model.disturbance_names)
+    allW = np.vstack([r.W_trace for r in traces.values()])
+    med = np.median(allW, axis=0)
+    mad = np.median(np.abs(allW - med), axis=0)
+    scale = np.where(mad > 0, mad, np.maximum(np.std(allW, axis=0), 1e-12))
+    width = (allW.max(axis=0) - allW.min(axis=0)) / scale
+    shares = dict(zip(names, map(float, width / width.sum())))
+    box = {n: [float(a), float(b)] for n, a, b in zip(names, allW.min(axis=0), allW.max(axis=0))}
+    sigma = 1.4826 * scale  # robust standard deviation (median absolute deviation)
+    qlo, qhi = med - envelope * sigma, med + envelope * sigma
+    env = {n: [float(a), float(b)] for n, a, b in zip(names, qlo, qhi)}
+
+    segments = {}
+    outside = {}
+    for c in cases:
+        W = traces[c.name].W_trace
+        t = c.t
+        out = (W < qlo) | (W > qhi)
+        outside[c.name] = (t[:-1] - t[0], out)
+        segments[c.name] = [{"channel": names[i], "t0": a, "t1": b}
+                            for i in range(len(names)) for a, b in _segments(out[:, i], t - t[0], min_duration)]  # fmt: skip
+
+    group_segments = {}
+    for g, members in suite.groups().items() if hasattr(suite, "groups") else [("all", cases)]:
+        if len(members) < 2:
+            continue
+        grid = outside[members[0].name][0]
+        frac = np.zeros((grid.size, len(names)))
+        for c in members:
+            tc, oc = outside[c.name]
+            idx = np.clip(np.searchsorted(tc, grid), 0, tc.size - 1)
+            frac += oc[idx]
+        frac /= len(members)
+        segs = []
+        for i in range(len(names)):
+            for a, b in _segments(frac[:, i] >= group_share, np.append(grid, grid[-1]), min_duration):
+                sel = (grid >= a) & (grid < b)
+                segs.append({"channel": names[i], "t0": a, "t1": b, "share": float(frac[sel, i].mean())})
+        group_segments[g] = sorted(segs, key=lambda s: -(s["t1"] - s["t0"]) * s["share"])
+
+    from scipy.stats import spearmanr
+
+    feats, cols = [], []
+    for c in cases:
+        sig = {k: v[:-1] for k, v in c.signals.items()}
+        dt = np.diff(c.t)
+        for k, v in c.signals.items():
+            sig[f"|d{k}/dt|"] = np.abs(np.diff(v) / dt)
+        cols.append(sig)
+    keys = [k for k in cols[0] if all(k in s for s in cols)]
+    F = {k: np.concatenate([s[k] for s in cols]) for k in keys}
+    conditions = {}
+    for i, n in enumerate(names):
+        absw = np.abs(allW[:, i])
+        corr = {}
+        for k, v in F.items():
+            if np.ptp(v) > 0 and np.ptp(absw) > 0:
+                rho = spearmanr(absw, v).statistic
+                if np.isfinite(rho):
+                    corr[k] = float(rho)
+        conditions[n] = dict(sorted(corr.items(), key=lambda kv: -abs(kv[1])))
+    return GapReport(names, shares, box, segments, group_segments, conditions, env)
