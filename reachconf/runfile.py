@@ -21,7 +21,6 @@ Example::
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -60,24 +59,18 @@ class RunSpec:
 
 
 def resolve_model(name: str, params=None, where="model"):
-    """A built-in model by name or ``module:attribute`` (a Model or a function returning one)."""
+    """A built-in model by name or ``module:attribute`` (see :func:`reachconf.models.get_model`)."""
     from reachconf.model import Model
+    from reachconf.models import get_model
 
     if not isinstance(name, str) or not name:
         raise DataError(f"{where}: model must be a non-empty string")
-    if ":" in name:
-        mod_name, attr = name.split(":", 1)
-        try:
-            obj = getattr(importlib.import_module(mod_name), attr)
-        except (ImportError, AttributeError) as exc:
-            raise DataError(f"{where}: cannot load model {name!r}: {exc}") from None
-        model = obj() if callable(obj) and not isinstance(obj, Model) else obj
-        if not isinstance(model, Model):
-            raise DataError(f"{where}: {name!r} is not a reachconf.Model")
-    else:
-        from reachconf.models import get_model
-
+    try:
         model = get_model(name)
+    except ReachconfError as exc:
+        raise DataError(f"{where}: {exc}") from None
+    if not isinstance(model, Model):
+        raise DataError(f"{where}: {name!r} is not a reachconf.Model")
     if params:
         model = model.with_params(**params)
     return model

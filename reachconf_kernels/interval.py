@@ -122,38 +122,22 @@ def _prod(a, b):
     return a * b
 
 
+@njit(cache=True, inline="always")
+def _outward4(a, b, c, d):
+    """Smallest and largest of four correctly rounded candidates, widened one ulp outward."""
+    return down(_mn(_mn(a, b), _mn(c, d))), up(_mx(_mx(a, b), _mx(c, d)))
+
+
 @njit(cache=True)
 def mul(alo, ahi, blo, bhi):
-    p1 = _prod(alo, blo)
-    p2 = _prod(alo, bhi)
-    p3 = _prod(ahi, blo)
-    p4 = _prod(ahi, bhi)
-    lo = p1
-    hi = p1
-    for v in (p2, p3, p4):
-        if v < lo:
-            lo = v
-        if v > hi:
-            hi = v
-    return down(lo), up(hi)
+    return _outward4(_prod(alo, blo), _prod(alo, bhi), _prod(ahi, blo), _prod(ahi, bhi))
 
 
 @njit(cache=True)
 def div(alo, ahi, blo, bhi):
     if blo <= 0.0 <= bhi:
         raise ZeroDivisionError("interval division by an interval containing 0")
-    q1 = alo / blo
-    q2 = alo / bhi
-    q3 = ahi / blo
-    q4 = ahi / bhi
-    lo = q1
-    hi = q1
-    for v in (q2, q3, q4):
-        if v < lo:
-            lo = v
-        if v > hi:
-            hi = v
-    return down(lo), up(hi)
+    return _outward4(alo / blo, alo / bhi, ahi / blo, ahi / bhi)
 
 
 @njit(cache=True)

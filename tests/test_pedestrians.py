@@ -1,23 +1,19 @@
 """Pedestrian use case: the BIWI reader, the exact reachable sets, and Table 9 on the real data."""
 
-import importlib.util
 import json
 
 import numpy as np
 import pytest
 
 import reachconf as rc
-from conftest import DATA_ROOT, REPO_ROOT
+from conftest import DATA_ROOT, load_example
 from reachconf.datasets.biwi import prediction_cases, read_obsmat, read_sequence
 
 PED = DATA_ROOT / "pedestrians"
 
 
 def load_run():
-    spec = importlib.util.spec_from_file_location("ped_run", REPO_ROOT / "examples" / "pedestrians" / "run.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_example("pedestrians")
 
 
 def test_reader_rejects_bad_files(tmp_path):

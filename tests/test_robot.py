@@ -1,21 +1,17 @@
 """Robot among the replayed BIWI crowds: a reduced run of the three safety layers."""
 
-import importlib.util
 import json
 
 import numpy as np
 import pytest
 
-from conftest import DATA_ROOT, REPO_ROOT
+from conftest import DATA_ROOT, load_example
 
 PED = DATA_ROOT / "pedestrians"
 
 
 def load_run():
-    spec = importlib.util.spec_from_file_location("robot_run", REPO_ROOT / "examples" / "robot" / "run.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_example("robot")
 
 
 def test_online_verification_rejects_a_motion_into_a_pedestrian_set():

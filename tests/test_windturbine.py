@@ -1,13 +1,12 @@
 """Wind turbine: the OpenFAST readers, the aero-map fit and the per-step trace conformance on the real output."""
 
-import importlib.util
 import json
 
 import numpy as np
 import pytest
 
 import reachconf as rc
-from conftest import DATA_ROOT, REPO_ROOT
+from conftest import DATA_ROOT, load_example
 from reachconf.datasets.aero import cp_poly, fit_aero, read_performance_table
 from reachconf.datasets.openfast import read_csv, read_outb, read_output
 
@@ -16,10 +15,7 @@ needs_data = pytest.mark.skipif(not (WT / "5MW_Land_DLL_WTurb.outb").exists(), r
 
 
 def load_run():
-    spec = importlib.util.spec_from_file_location("wt_run", REPO_ROOT / "examples" / "windturbine" / "run.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_example("windturbine")
 
 
 def write_outb(path, file_id, t, values, names, units, desc="test"):

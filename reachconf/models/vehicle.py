@@ -118,6 +118,29 @@ def bicycle_actuated(**params) -> Model:
     )
 
 
+def _gain_names():
+    from reachconf.campaign.controller import ControllerGains
+
+    return list(ControllerGains.__dataclass_fields__)
+
+
+def _gain_params() -> dict:
+    """The default controller gains as model parameters ``gain_<name>``."""
+    from reachconf.campaign.controller import ControllerGains
+
+    gains = ControllerGains()
+    return {f"gain_{k}": float(getattr(gains, k)) for k in _gain_names()}
+
+
+def _controller(s):
+    """``(a_x, delta)`` commanded by the tracking law on the model's symbols (gains are parameters)."""
+    from reachconf.campaign.controller import ControllerGains, tracking_law
+
+    g = ControllerGains(**{k: s[f"gain_{k}"] for k in _gain_names()})
+    return tracking_law(s.X, s.Y, s.psi, s.vx, s.vy, s.omega, s.X_ref, s.Y_ref, s.psi_ref, s.v_ref, s.kappa_ref, g,
+                        m=sp)  # fmt: skip
+
+
 def bicycle_closed_loop(**params) -> Model:
     """Closed-loop bicycle model of section 4.3 (reachset conformance), eqs. 59/60.
 
@@ -129,19 +152,12 @@ def bicycle_closed_loop(**params) -> Model:
     additive disturbance ``w1..w6`` (eq. 60).  Controller gains are parameters
     (``k_*`` names of :class:`reachconf.campaign.controller.ControllerGains`).
     """
-    from reachconf.campaign.controller import ControllerGains, tracking_law
-
-    gains = ControllerGains()
-    gain_names = [k for k in gains.__dataclass_fields__]
     p = dict(TABLE1)
-    p.update({f"gain_{k}": float(getattr(gains, k)) for k in gain_names})
+    p.update(_gain_params())
     p.update(params)
 
     def f(s):
-        g = ControllerGains(**{k: s[f"gain_{k}"] for k in gain_names})
-        ax, delta = tracking_law(
-            s.X, s.Y, s.psi, s.vx, s.vy, s.omega, s.X_ref, s.Y_ref, s.psi_ref, s.v_ref, s.kappa_ref, g, m=sp
-        )
+        ax, delta = _controller(s)
         rhs = _bicycle_rhs(s, ax, delta, 0, 0, 0)
         w = (s.w1, s.w2, s.w3, s.w4, s.w5, s.w6)
         return [r + wi for r, wi in zip(rhs, w)]
@@ -167,21 +183,14 @@ def bicycle_closed_loop_actuated(**params) -> Model:
     ``X, Y, psi, vx, vy, omega, ax, delta`` (the realised acceleration and
     steering angle are measured); disturbances ``w1..w6`` on the vehicle ODEs.
     """
-    from reachconf.campaign.controller import ControllerGains, tracking_law
-
-    gains = ControllerGains()
-    gain_names = [k for k in gains.__dataclass_fields__]
     p = dict(TABLE1)
     p.update(TABLE2)
     p["delta_s_nominal"] = TABLE2["delta_s"]
-    p.update({f"gain_{k}": float(getattr(gains, k)) for k in gain_names})
+    p.update(_gain_params())
     p.update(params)
 
     def f(s):
-        g = ControllerGains(**{k: s[f"gain_{k}"] for k in gain_names})
-        ax_cmd, delta_cmd = tracking_law(
-            s.X, s.Y, s.psi, s.vx, s.vy, s.omega, s.X_ref, s.Y_ref, s.psi_ref, s.v_ref, s.kappa_ref, g, m=sp
-        )
+        ax_cmd, delta_cmd = _controller(s)
         rhs = _bicycle_rhs(s, s.ax, s.delta, 0, 0, 0)
         w = (s.w1, s.w2, s.w3, s.w4, s.w5, s.w6)
         return [r + wi for r, wi in zip(rhs, w)] + [
