@@ -31,6 +31,9 @@ __version__ = "0.1.0"
 # the function, not the submodule, is the package attribute.
 from reachconf.reach import ReachOptions, reach  # noqa: E402
 
+# ``diagnose`` likewise: the function (``reachconf.diagnose(model, suite)``), its package stays importable
+from reachconf.diagnose import DiagnoseOptions, GapReport, diagnose, locate_gap  # noqa: E402
+
 # public name -> module that defines it
 _LAZY = {
     "Interval": "reachconf.sets",
@@ -49,8 +52,6 @@ _LAZY = {
     "synthesize_W": "reachconf.conformance",
     "SynthesisResult": "reachconf.conformance",
     "pareto_front": "reachconf.conformance",
-    "locate_gap": "reachconf.diagnose",
-    "GapReport": "reachconf.diagnose",
 }
 
 __all__ = [
@@ -65,6 +66,10 @@ __all__ = [
     "OptionsError",
     "reach",
     "ReachOptions",
+    "diagnose",
+    "DiagnoseOptions",
+    "GapReport",
+    "locate_gap",
     *_LAZY,
 ]
 

@@ -1,4 +1,4 @@
-"""Command line: ``reachconf {demo,reach,conform,synth,plot}``.
+"""Command line: ``reachconf {demo,reach,conform,synth,diagnose,plot}``.
 
 User errors (bad run file, data, options, sets) print one line and exit
 with status 2; Ctrl-C saves the partial results and exits with 130.
@@ -228,6 +228,35 @@ def cmd_plot(args):
     return 0
 
 
+def cmd_diagnose(args):
+    """``reachconf diagnose RUN.toml --json report.json --out DIR``: the sim-to-real gap diagnosis."""
+    import reachconf as rc
+    from reachconf.io import TestSuite
+    from reachconf.runfile import diagnose_settings
+
+    spec = _load(args)
+    suite = spec.suite()
+    if args.case:
+        cases = [c for c in suite if c.name in set(args.case)]
+        missing = sorted(set(args.case) - {c.name for c in cases})
+        if missing:
+            raise DataError(f"{spec.path}: no test cases named {missing} in {spec.suite_path}")
+        suite = TestSuite(cases)
+    kwargs = diagnose_settings(spec)
+    report = rc.diagnose(spec.model, suite, V=spec.V, **kwargs)
+    out = _outdir(args)
+    if args.json:
+        report.to_json(args.json)
+    if out is not None:
+        from reachconf.io import atomic_write_text
+
+        report.to_json(out / "report.json")
+        atomic_write_text(out / "report.md", report.summary())
+        report.plot(out)
+    print(report.verdict)
+    return 0
+
+
 def _load(args):
     from reachconf.runfile import load_run
 
@@ -263,6 +292,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("synth", help="minimal disturbance set: steps 1-3 and the merge (Table 6)")
     common(sp)
     sp.set_defaults(fn=cmd_synth)
+    sp = sub.add_parser("diagnose", help="sim-to-real gap: where it lies, which effect causes it, how far W shrinks")
+    common(sp)
+    sp.set_defaults(fn=cmd_diagnose)
     sp = sub.add_parser("plot", help="plot a result (tube .npz, synthesis or Pareto JSON)")
     sp.add_argument("result")
     sp.add_argument("--out", help="folder for the PNG (default: next to the result)")

@@ -16,6 +16,11 @@ Example::
     method = "perstep"
     [synthesis]                        # SynthesisOptions fields
     alpha_iterations = 10
+    [diagnose]                         # reachconf diagnose: effects, holdout, fit_params, seed + DiagnoseOptions
+    effects = "all"                    # or a list of names, or of [name, target] pairs
+    holdout = 0.3
+    fit_params = ["J_m", "c_f"]        # or true / false
+    window = 1.0
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ import numpy as np
 from reachconf.errors import DataError, ReachconfError
 from reachconf.sets import Interval
 
-__all__ = ["RunSpec", "load_run", "resolve_model"]
+__all__ = ["RunSpec", "load_run", "resolve_model", "diagnose_settings"]
 
 _KEYS = {"model", "suite", "params", "sets", "reach", "trace", "synthesis", "description", "workers", "diagnose"}
 
@@ -145,3 +150,43 @@ def load_run(path) -> RunSpec:
     synth_opts = dataclasses.replace(synth_opts, reach=reach_opts, trace=trace_opts)
     workers = raw.get("workers")
     return RunSpec(path, model, suite_path, W, V, X0, reach_opts, method, trace_opts, synth_opts, workers, raw)
+
+
+def diagnose_settings(spec: RunSpec) -> dict:
+    """Keyword arguments of :func:`reachconf.diagnose` from the run file's ``[diagnose]`` table."""
+    from reachconf.diagnose import EFFECTS, DiagnoseOptions
+
+    where = f"{spec.path}: [diagnose]"
+    table = dict(spec.raw.get("diagnose", {}))
+    kwargs = {}
+    effects = table.pop("effects", "all")
+    if isinstance(effects, list):
+        items = []
+        for e in effects:
+            if isinstance(e, list) and len(e) == 2 and all(isinstance(x, str) for x in e):
+                items.append(tuple(e))
+            elif isinstance(e, str):
+                items.append(e)
+            else:
+                raise DataError(f"{where}: effects entries must be names or [name, target] pairs, got {e!r}")
+        effects = items
+    for e in effects if isinstance(effects, list) else [effects]:
+        name = e[0] if isinstance(e, tuple) else e
+        if name != "all" and name not in EFFECTS:
+            raise DataError(f"{where}: unknown effect {name!r}; known: {sorted(EFFECTS)}")
+    kwargs["effects"] = effects
+    for key, typ in (("holdout", (int, float)), ("seed", int)):
+        if key in table:
+            if not isinstance(table[key], typ) or isinstance(table[key], bool):
+                raise DataError(f"{where}: {key} must be a number, got {table[key]!r}")
+            kwargs[key] = table.pop(key)
+    if "fit_params" in table:
+        fp = table.pop("fit_params")
+        if not (isinstance(fp, bool) or (isinstance(fp, list) and all(isinstance(x, str) for x in fp))):
+            raise DataError(f"{where}: fit_params must be true, false or a list of parameter names")
+        unknown = sorted(set(fp) - set(spec.model.param_names)) if isinstance(fp, list) else []
+        if unknown:
+            raise DataError(f"{where}: fit_params: model has no parameters {unknown}")
+        kwargs["fit_params"] = fp
+    kwargs["options"] = _options(DiagnoseOptions, table, where)
+    return kwargs

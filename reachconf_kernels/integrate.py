@@ -117,3 +117,35 @@ def eval_outputs(h, jac_h, X, U, p, n_out, q):
         jac_h(z, p, Jk)
         J[k] = Jk
     return Y, J
+
+
+@njit((FN_POINT_VEC, f8_2, types.int64[:], f8_2, f8_1, f8_1, types.int64, types.int64, types.int64), cache=True)
+def rk4_windows(f, X0, starts, U, times, p, q, length, substeps):
+    """Multi-step predictions: from ``X0[j]`` at sample ``starts[j]`` over ``length`` sample intervals.
+
+    Inputs ``U[k]`` act on ``[t_k, t_k+1)``, the ``q`` disturbances are zero.  Returns
+    the predicted states at samples ``starts[j] + 1 ... starts[j] + length``,
+    shape (J, length, n); every window must end inside ``times``.
+    """
+    J = X0.shape[0]
+    n = X0.shape[1]
+    m = U.shape[1]
+    out = np.empty((J, length, n))
+    z = np.zeros(n + m + q)
+    k1 = np.empty(n)
+    k2 = np.empty(n)
+    k3 = np.empty(n)
+    k4 = np.empty(n)
+    tmp = np.empty(n)
+    x = np.empty(n)
+    for j in range(J):
+        x[:] = X0[j]
+        k0 = starts[j]
+        for i in range(length):
+            k = k0 + i
+            z[n : n + m] = U[k]
+            h = (times[k + 1] - times[k]) / substeps
+            for s in range(substeps):
+                _rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
+            out[j, i] = x
+    return out

@@ -27,3 +27,143 @@ def test_locate_gap_finds_channel_segment_and_condition():
     assert "w2" in rep.conditions and rep.conditions["w2"]
     assert "w2, 2.0-3.0 s" in rep.summary() or "w2, 1.9" in rep.summary() or "w2, 2.1" in rep.summary()
     assert '"shares"' in rep.to_json()
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# which effect: the library, the joint fits and the report
+import json  # noqa: E402
+import math  # noqa: E402
+
+import pytest  # noqa: E402
+
+from reachconf.diagnose import EFFECTS, DiagnoseOptions  # noqa: E402
+from reachconf.errors import ConformanceError, OptionsError  # noqa: E402
+from reachconf_kernels.signals import first_order_lag, transport_delay  # noqa: E402
+
+
+def _oscillator(k=4.0):
+    return rc.Model(name="oscillator", states=("p", "v"), inputs=("u",), disturbances=("w",),
+                    params={"k": k, "d": 0.8},
+                    dynamics=lambda s: [s.v, -s.k * s.p - s.d * s.v + s.u + s.w])  # fmt: skip
+
+
+def _oscillator_suite(lag=None, offset=0.0, n=6, noise=0.002, seed=0, k=4.0):
+    """Cases of the oscillator driven by a multisine; the real input passes a lag/offset the model lacks."""
+    m = _oscillator(k)
+    cases = []
+    for i in range(n):
+        rng = np.random.default_rng(seed + i)
+        t = np.round(np.arange(0, 8.0 + 1e-9, 0.01), 10)
+        f = rng.uniform(0.3, 2.5, size=4)
+        u = sum(np.sin(2 * np.pi * fi * t + rng.uniform(0, 6)) for fi in f)
+        u_real = first_order_lag(t, u, lag) if lag else u.copy()
+        u_real = u_real + offset
+        X = simulate(m, [0.0, 0.0], t, inputs=u_real[:, None], substeps=4)
+        Y = X + rng.normal(scale=noise, size=X.shape).clip(-2 * noise, 2 * noise)
+        cases.append(TestCase(f"c{i}", f"g{i % 2}", t, u[:, None], Y, ("u",), ("p", "v")))
+    return m, TestSuite(cases)
+
+
+def test_signal_kernels_match_the_model_transformations():
+    t = np.round(np.arange(0, 3.0 + 1e-9, 0.01), 10)
+    u = np.sin(2 * t) + (t > 1.0)
+    # zero delay is the identity, an integer number of samples a shift
+    assert np.allclose(transport_delay(t, u, 0.0)[:-1], u[:-1])
+    assert np.allclose(transport_delay(t, u, 0.05)[5:-1], u[:-6], atol=1e-12)
+    # the lag filter equals the model with an extra actuator state (apply_model), driven by u
+    base = _oscillator()
+    lagged = EFFECTS["actuator_lag"].apply_model(base, "u", (0.15,))
+    assert lagged.state_names == ("p", "v", "u_act")
+    X_state = simulate(lagged, [0.0, 0.0, u[0]], t, inputs=u[:, None], substeps=20)
+    X_signal = simulate(base, [0.0, 0.0], t, inputs=first_order_lag(t, u, 0.15)[:, None], substeps=20)
+    assert np.max(np.abs(X_state[:, :2] - X_signal)) < 2e-4
+    # an input offset as a model transformation equals the offset signal
+    off = EFFECTS["input_offset"].apply_model(base, "u", (0.3,))
+    X1 = simulate(off, [0.0, 0.0], t, inputs=u[:, None])
+    X2 = simulate(base, [0.0, 0.0], t, inputs=(u + 0.3)[:, None])
+    assert np.allclose(X1, X2)
+    # output effects change h only
+    sensor = EFFECTS["output_offset"].apply_model(base, "p", (0.1,))
+    assert np.allclose(sensor.h([1.0, 2.0], [0.0]), [1.1, 2.0])
+
+
+def test_diagnose_names_a_withheld_input_lag_and_its_time_constant():
+    m, suite = _oscillator_suite(lag=0.2)
+    rep = rc.diagnose(m, suite, effects=["actuator_lag", "dead_time", "input_offset", "input_scale", "output_offset"],
+                      progress=False)  # fmt: skip
+    best = rep.ranked_effects[0]
+    assert (best["effect"], best["target"]) == ("actuator_lag", "u")
+    assert abs(best["params"]["tau"] - 0.2) < 0.25 * 0.2
+    assert best["prediction_gain"] > 0.5 and best["shrink_volume"] > 1.0
+    assert "actuator_lag on u" in rep.verdict
+    assert set(rep.split["train"]).isdisjoint(rep.split["test"])
+    d = json.loads(rep.to_json())
+    assert {"where", "ranked_effects", "verdict"} <= set(d)
+    assert {"effect", "target", "params", "shrink_volume", "shrink_per_channel"} <= set(d["ranked_effects"][0])
+    assert d["before_after"]["W"]["w"]["shrink"] > 1.0
+    assert "| 1 | actuator_lag | u |" in rep.summary()
+
+
+def test_diagnose_finds_an_offset_and_says_so_when_nothing_explains_the_gap():
+    # without a spring (k = 0) an input offset is not an output offset in disguise (with k > 0 it is: c / k on p)
+    m, suite = _oscillator_suite(offset=0.4, seed=10, k=0.0)
+    rep = rc.diagnose(m, suite, effects=["actuator_lag", "input_offset", "output_offset"], progress=False)
+    assert (rep.best["effect"], rep.best["target"]) == ("input_offset", "u")
+    assert abs(rep.best["params"]["c"] - 0.4) < 0.1
+    m, suite = _oscillator_suite(seed=20)
+    rep = rc.diagnose(m, suite, effects=["actuator_lag", "input_offset", "output_offset"], progress=False)
+    assert rep.verdict.startswith("no effect in the library explains the gap")
+
+
+def test_diagnose_bad_input():
+    m, suite = _oscillator_suite(n=3)
+    with pytest.raises(ConformanceError):
+        rc.diagnose(m, TestSuite(list(suite)[:1]), progress=False)
+    with pytest.raises(OptionsError):
+        rc.diagnose(m, suite, effects=["warp_drive"], progress=False)
+    with pytest.raises(OptionsError):
+        rc.diagnose(m, suite, effects=[("actuator_lag", "p")], progress=False)  # p is not an input
+    with pytest.raises(OptionsError):
+        rc.diagnose(m, suite, holdout=1.5, progress=False)
+    with pytest.raises(OptionsError):
+        rc.diagnose(m, suite, fit_params=["nope"], progress=False)
+    with pytest.raises(OptionsError):
+        DiagnoseOptions(window=0)
+    with pytest.raises(OptionsError):
+        DiagnoseOptions(smooth=4)
+    no_w = rc.Model(name="no_w", states=("p", "v"), inputs=("u",), dynamics=lambda s: [s.v, -s.p + s.u])
+    with pytest.raises(ConformanceError):
+        rc.diagnose(no_w, suite, progress=False)
+    with pytest.raises(ConformanceError):
+        rc.locate_gap(no_w, suite)
+
+
+def test_cli_diagnose(tmp_path):
+    from reachconf.cli import main
+    from reachconf.io import save_suite
+
+    m, suite = _oscillator_suite(lag=0.2, n=4)
+    save_suite(suite, tmp_path / "suite")
+    (tmp_path / "osc.py").write_text(
+        "import reachconf as rc\n"
+        "model = rc.Model(name='oscillator', states=('p', 'v'), inputs=('u',), disturbances=('w',),\n"
+        "                 params={'k': 4.0, 'd': 0.8}, dynamics=lambda s: [s.v, -s.k*s.p - s.d*s.v + s.u + s.w])\n"
+    )
+    run = tmp_path / "run.toml"
+    run.write_text('model = "osc:model"\nsuite = "suite"\n[diagnose]\neffects = ["actuator_lag", ["input_offset", "u"]]\n'
+                   'holdout = 0.5\n')  # fmt: skip
+    import sys
+
+    sys.path.insert(0, str(tmp_path))
+    try:
+        rc_code = main(["diagnose", str(run), "--json", str(tmp_path / "r.json"), "--out", str(tmp_path / "out")])
+        assert rc_code == 0
+        d = json.loads((tmp_path / "r.json").read_text())
+        assert d["ranked_effects"][0]["effect"] == "actuator_lag"
+        assert (tmp_path / "out" / "report.md").exists() and (tmp_path / "out" / "effects.png").exists()
+        run.write_text('model = "osc:model"\nsuite = "suite"\n[diagnose]\neffects = ["warp"]\n')
+        assert main(["diagnose", str(run)]) == 2
+        run.write_text('model = "osc:model"\nsuite = "suite"\n[diagnose]\nwindw = 1.0\n')
+        assert main(["diagnose", str(run)]) == 2
+    finally:
+        sys.path.remove(str(tmp_path))

@@ -14,7 +14,7 @@ From the per-step disturbance traces of trace conformance (section 3.2.1),
   measured signal and the magnitude of its rate of change.
 
 Which unmodelled effect causes the gap, and how far W shrinks once it is
-modelled (the rest of the diagnosis), is not implemented yet.
+modelled, is :func:`reachconf.diagnose` (this location is its ``where`` part).
 """
 
 from __future__ import annotations
@@ -27,11 +27,11 @@ import numpy as np
 from reachconf.conformance.trace import TraceOptions, trace_disturbances
 from reachconf.errors import ConformanceError
 
-__all__ = ["GapReport", "locate_gap"]
+__all__ = ["GapLocation", "locate_gap"]
 
 
 @dataclass
-class GapReport:
+class GapLocation:
     """Where the gap lies (see module docstring)."""
 
     channels: list
@@ -86,7 +86,7 @@ def _segments(mask, t, min_len):
 
 
 def locate_gap(model, suite, V=None, envelope: float = 4.0, min_duration: float = 0.2, group_share: float = 0.6,
-               options: TraceOptions | None = None) -> GapReport:  # fmt: skip
+               options: TraceOptions | None = None) -> GapLocation:  # fmt: skip
     """Locate the sim-to-real gap of ``model`` on ``suite`` (see module docstring).
 
     Parameters
@@ -169,4 +169,4 @@ def locate_gap(model, suite, V=None, envelope: float = 4.0, min_duration: float 
                 if np.isfinite(rho):
                     corr[k] = float(rho)
         conditions[n] = dict(sorted(corr.items(), key=lambda kv: -abs(kv[1])))
-    return GapReport(names, shares, box, segments, group_segments, conditions, env)
+    return GapLocation(names, shares, box, segments, group_segments, conditions, env)

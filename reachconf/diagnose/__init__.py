@@ -1,0 +1,390 @@
+"""Sim-to-real gap diagnosis: where the gap lies, which unmodelled effect causes it, how far W shrinks.
+
+:func:`diagnose` (``reachconf.diagnose(model, suite)``) runs, on disjoint
+training and held-out test cases:
+
+1. the base model's declared parameters are re-identified by multi-step
+   prediction least squares on the training cases (:mod:`.fit`), so that a
+   wrong nominal parameter is not mistaken for an unmodelled effect;
+2. *where* (:func:`.locate.locate_gap`): channel shares of the normalised
+   disturbance box, time segments outside the quiet envelope per case and
+   group, rank correlations with operating conditions; and, if the suite holds
+   requested (``<input>_req``) next to measured actuator signals, whether the
+   gap sits on the actuator or the process side (the two set-ups of Figure 1);
+3. *which* effect: every (effect, target) of the library (:mod:`.effects`) is
+   fitted jointly with the base parameters (kept near nominal by a prior) and
+   scored on the held-out cases by the multi-step prediction cost; the best
+   ``top`` are scored by the minimal trace-conformant disturbance box (the SCP
+   of synthesis step 2 under ``V``) against the refitted base, ranked by the
+   shrink of its volume; the best is combined with each runner-up;
+4. a model-free check (:mod:`.sparse`): sparse regression of the base model's
+   disturbance traces on lagged/differentiated inputs and state products;
+5. *how far*: the minimal trace-conformant ``W`` (and ``V`` with ``W = 0``)
+   of base and best model on the held-out cases.
+
+The verdict names an effect only if it shrinks the box by ``min_shrink`` and
+the held-out prediction cost by ``min_improvement``; otherwise it says "no
+effect in the library explains the gap".
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from reachconf.diagnose.effects import EFFECTS, Effect, register_effect
+from reachconf.diagnose.fit import DiagnoseOptions
+from reachconf.diagnose.locate import GapLocation, locate_gap
+from reachconf.diagnose.report import GapReport
+
+__all__ = ["diagnose", "DiagnoseOptions", "GapReport", "GapLocation", "locate_gap", "EFFECTS", "Effect",
+           "register_effect"]  # fmt: skip
+
+
+def _resolve_effects(model, effects):
+    from reachconf.errors import OptionsError
+
+    if isinstance(effects, str) and effects == "all":
+        chosen = list(EFFECTS.values())
+    else:
+        items = [effects] if isinstance(effects, (str, Effect, tuple)) else list(effects)
+        chosen, pairs = [], []
+        for it in items:
+            if isinstance(it, Effect):
+                chosen.append(it)
+            elif isinstance(it, tuple) and len(it) == 2:
+                name, tgt = it
+                if name not in EFFECTS:
+                    raise OptionsError(f"effects: unknown effect {name!r}; known: {sorted(EFFECTS)}")
+                pairs.append((EFFECTS[name], tgt))
+            elif isinstance(it, str) and it in EFFECTS:
+                chosen.append(EFFECTS[it])
+            else:
+                raise OptionsError(f"effects: unknown effect {it!r}; known: {sorted(EFFECTS)}")
+        out = [(e, t) for e in chosen for t in e.applicable(model)]
+        for e, t in pairs:
+            if t not in e.applicable(model):
+                raise OptionsError(f"effects: {e.name} cannot act on {t!r} of model {model.name!r}; "
+                                   f"targets: {e.applicable(model)}")  # fmt: skip
+            out.append((e, t))
+        return out
+    return [(e, t) for e in chosen for t in e.applicable(model)]
+
+
+def _split(prepared, holdout, seed):
+    """Disjoint training/held-out cases, stratified by group (at least one of each overall)."""
+    rng = np.random.default_rng(seed)
+    groups = {}
+    for d in prepared:
+        groups.setdefault(d.group, []).append(d)
+    train, test = [], []
+    for g in sorted(groups):
+        members = groups[g]
+        order = rng.permutation(len(members))
+        n_test = int(round(holdout * len(members)))
+        if len(members) >= 2:
+            n_test = min(max(n_test, 1), len(members) - 1)
+        test += [members[i] for i in order[:n_test]]
+        train += [members[i] for i in order[n_test:]]
+    if not test:
+        test.append(train.pop(int(rng.integers(len(train)))))
+    if not train:
+        train.append(test.pop(int(rng.integers(len(test)))))
+    return train, test
+
+
+def _box(model, cases, V, opts):
+    """Hull of the per-case minimal W boxes (SCP of synthesis step 2), or None if the SCP fails."""
+    from reachconf.conformance.bounds import _case_box
+    from reachconf.conformance.trace import TraceOptions
+    from reachconf.errors import ReachconfError
+
+    los, his = [], []
+    try:
+        for c in cases:
+            r = _case_box((model, c, V, "optctrl", "W", TraceOptions()))
+            los.append(r[0])
+            his.append(r[1])
+    except (ReachconfError, np.linalg.LinAlgError, ValueError):
+        return None
+    return np.min(los, axis=0), np.max(his, axis=0)
+
+
+def _vbox(model, cases):
+    from reachconf.conformance.bounds import _case_box
+    from reachconf.conformance.trace import TraceOptions
+    from reachconf.errors import ReachconfError
+
+    try:
+        rs = [_case_box((model, c, None, "perstep", "V", TraceOptions())) for c in cases]
+    except (ReachconfError, np.linalg.LinAlgError, ValueError):
+        return None
+    return np.min([r[0] for r in rs], axis=0), np.max([r[1] for r in rs], axis=0)
+
+
+def _decimated(model, fit, cases, k):
+    from reachconf.diagnose.fit import transformed_case
+
+    out = []
+    for d in cases:
+        c = transformed_case(model, d.case, fit.candidate, fit.effect_params)
+        out.append(c.decimate(k) if k > 1 else c)
+    return out
+
+
+def _shrink(base_box, box, eps, channels):
+    wb = base_box[1] - base_box[0]
+    we = box[1] - box[0]
+    per = (wb + eps) / (we + eps)
+    return float(np.prod(per)), dict(zip(channels, map(float, per)))
+
+
+def _entry(fit, cost, base_cost):
+    from reachconf.diagnose.fit import FitResult  # noqa: F401
+
+    (e, tgt), = fit.candidate.parts
+    th = fit.effect_params[(e.name, tgt)]
+    sd = fit.effect_std.get((e.name, tgt), (float("nan"),) * len(th))
+    return {"effect": e.name, "target": tgt, "params": dict(zip(e.params, map(float, th))),
+            "params_std": dict(zip(e.params, map(float, sd))), "prediction_cost": float(cost),
+            "prediction_gain": float(1 - cost / base_cost) if base_cost > 0 else 0.0, "shrink_volume": None,
+            "shrink_per_channel": None, "base_params": {k: float(v) for k, v in fit.base_params.items()}}  # fmt: skip
+
+
+def _actuator_vs_process(model, fit, cases, V, k, min_shrink):
+    """Figure 1: the base model driven by measured actuator outputs vs by (affinely mapped) requests."""
+    from reachconf.io import TestCase
+
+    req = {u: f"{u}_req" for u in model.input_names}
+    have = [u for u in model.input_names if all(req[u] in d.case.signals for d in cases)]
+    if not have:
+        return None
+    measured = _decimated(model, fit, cases, k)
+    requested = []
+    maps = {}
+    for u in have:
+        j = model.input_names.index(u)
+        A = np.concatenate([d.case.signal(req[u]) for d in cases])
+        B = np.concatenate([d.U[:, j] for d in cases])
+        coef = np.polyfit(A, B, 1)
+        maps[u] = [float(coef[0]), float(coef[1])]
+    for d in cases:
+        U = d.U.copy()
+        for u in have:
+            j = model.input_names.index(u)
+            U[:, j] = np.polyval(maps[u], d.case.signal(req[u]))
+        c = TestCase(d.name, d.group, d.t, U, d.Y, model.input_names, model.output_names)
+        requested.append(c.decimate(k) if k > 1 else c)
+    bm = _box(fit.model, measured, V, None)
+    br = _box(fit.model, requested, V, None)
+    if bm is None or br is None:
+        return None
+    eps = 1e-9 + 0.05 * np.maximum(bm[1] - bm[0], br[1] - br[0])
+    ratio, per = _shrink(br, bm, eps, model.disturbance_names)
+    side = "actuators" if ratio >= min_shrink else "process model"
+    verdict = (f"with the requested instead of the measured actuator signals ({', '.join(have)}) the minimal W "
+               f"volume is {ratio:.2f}x larger: the gap sits mostly in the {side}")  # fmt: skip
+    return {"inputs": have, "request_map": maps, "volume_ratio": ratio, "per_channel_ratio": per,
+            "box_measured": [list(map(float, bm[0])), list(map(float, bm[1]))],
+            "box_requested": [list(map(float, br[0])), list(map(float, br[1]))], "verdict": verdict}  # fmt: skip
+
+
+def diagnose(model, suite, effects="all", holdout: float = 0.3, fit_params=True, seed: int = 0, V=None,
+             options: DiagnoseOptions | None = None, progress: bool = True) -> GapReport:  # fmt: skip
+    """Diagnose the sim-to-real gap of ``model`` on ``suite`` (see the module docstring).
+
+    Parameters
+    ----------
+    model : reachconf.Model
+        The base model (with disturbances ``w``; its inputs are driven by the suite's signals).
+    suite : TestSuite or iterable of TestCase
+        At least two cases (training and held-out cases are disjoint).
+    effects : "all", str, Effect, (name, target) or a list of these
+        Candidate effects (default: the whole library on every applicable target).
+    holdout : float
+        Share of the cases of each group held out for scoring.
+    fit_params : bool or sequence of str
+        Base parameters re-identified jointly (True: all declared parameters).
+    seed : int
+        Seed of the training/held-out split.
+    V : Interval, optional
+        Measurement-error set; default 3 noise standard deviations per output,
+        estimated from third differences of the data.
+    options : DiagnoseOptions
+
+    Returns
+    -------
+    GapReport
+    """
+    from tqdm.auto import tqdm
+
+    from reachconf.diagnose.fit import Candidate, fit_candidate, noise_level, prediction_cost, prepare
+    from reachconf.diagnose.sparse import feature_dictionary, sparse_features
+    from reachconf.errors import ConformanceError, OptionsError
+    from reachconf.io import TestSuite
+    from reachconf.sets import Interval
+
+    t_start = time.perf_counter()
+    options = options or DiagnoseOptions()
+    if not isinstance(options, DiagnoseOptions):
+        raise OptionsError(f"options must be a DiagnoseOptions, got {type(options).__name__}")
+    if not 0 < holdout < 1:
+        raise OptionsError(f"holdout must be in (0, 1), got {holdout!r}")
+    cases = list(suite)
+    if len(cases) < 2:
+        raise ConformanceError(f"diagnose needs at least two test cases (training and held-out), got {len(cases)}")
+    if model.q == 0:
+        raise ConformanceError(f"model {model.name!r} has no disturbances: there is no gap box to diagnose")
+    if fit_params is True:
+        fit_names = tuple(model.param_names)
+    elif fit_params is False or fit_params is None:
+        fit_names = ()
+    else:
+        fit_names = tuple(fit_params)
+        unknown = sorted(set(fit_names) - set(model.param_names))
+        if unknown:
+            raise OptionsError(f"fit_params: model {model.name!r} has no parameters {unknown}")
+    candidates = _resolve_effects(model, effects)
+    if not candidates:
+        raise OptionsError("effects: no candidate effect applies to this model")
+
+    prepared = [prepare(model, c, options) for c in cases]
+    sigma = noise_level(np.vstack([d.Y for d in prepared]))
+    if V is None:
+        V = Interval(-3 * sigma, 3 * sigma)
+    elif not isinstance(V, Interval) or V.dim != model.p:
+        raise OptionsError(f"V must be an Interval of dimension {model.p} (the model's outputs)")
+    train, test = _split(prepared, holdout, seed)
+    dt = float(np.median(np.diff(prepared[0].t)))
+    k = max(int(round(1.0 / (options.box_rate * dt))), 1)
+    cache = {}
+    bar = tqdm(total=len(candidates) + 3, desc="diagnose", disable=not progress, leave=False)
+
+    base = fit_candidate(model, Candidate(()), train, sigma, fit_names, options, cache)
+    base_cost = prediction_cost(base, test, sigma, options)
+    bar.update(1)
+    test_base = _decimated(model, base, test, k)
+    train_base = _decimated(model, base, train, k)
+    where = {"location": locate_gap(base.model, TestSuite(train_base + test_base), V=V).to_dict()}
+    avp = _actuator_vs_process(model, base, test, V, k, options.min_shrink)
+    if avp is not None:
+        where["actuator_vs_process"] = avp
+    bar.update(1)
+
+    # natural scale of each disturbance channel: spread of the base model's per-step traces (held-out)
+    from reachconf.conformance.trace import trace_disturbances
+
+    per_step = [trace_disturbances(base.model, c, V=V).W_trace for c in test_base]
+    eps = 1e-9 + 0.05 * np.ptp(np.vstack(per_step), axis=0)
+    base_box = _box(base.model, test_base, V, None)
+    if base_box is None:
+        raise ConformanceError("diagnose: no minimal disturbance box found for the refitted base model")
+    channels = list(model.disturbance_names)
+
+    fits = []
+    interrupted = False
+    try:
+        for e, tgt in candidates:
+            bar.set_postfix_str(f"{e.name}({tgt})")
+            f = fit_candidate(model, Candidate(((e, tgt),)), train, sigma, fit_names, options, cache)
+            fits.append((f, prediction_cost(f, test, sigma, options)))
+            bar.update(1)
+    except KeyboardInterrupt:
+        interrupted = True  # report what was fitted so far
+    fits.sort(key=lambda fc: fc[1])
+    entries = []
+    for i, (f, cost) in enumerate(fits):
+        ent = _entry(f, cost, base_cost)
+        if i < options.top and not interrupted:
+            box = _box(f.model, _decimated(model, f, test, k), V, None)
+            if box is not None:
+                ent["shrink_volume"], ent["shrink_per_channel"] = _shrink(base_box, box, eps, channels)
+                ent["box"] = {ch: [float(a), float(b)] for ch, a, b in zip(channels, box[0], box[1])}
+        entries.append((ent, f))
+    ranked = entries  # best held-out multi-step prediction first
+    bar.update(1)
+
+    best = ranked[0][0] if ranked else None
+    named = bool(best and best["prediction_gain"] >= options.min_improvement
+                 and (best["shrink_volume"] is None or best["shrink_volume"] >= options.min_shrink))  # fmt: skip
+    combination = None
+    best_fit = ranked[0][1] if named else base
+    if named and options.combine:
+        for ent, f in ranked[1 : 1 + min(2, options.top)]:
+            if ent["shrink_volume"] is None:
+                continue
+            parts = ranked[0][1].candidate.parts + f.candidate.parts
+            cf = fit_candidate(model, Candidate(parts), train, sigma, fit_names, options, cache)
+            box = _box(cf.model, _decimated(model, cf, test, k), V, None)
+            if box is None:
+                continue
+            sv, per = _shrink(base_box, box, eps, channels)
+            if sv >= 1.2 * best["shrink_volume"] and (combination is None or sv > combination["shrink_volume"]):
+                params = {f"{e.name}.{p}({t})": float(v) for (e, t) in parts
+                          for p, v in zip(e.params, cf.effect_params[(e.name, t)])}  # fmt: skip
+                combination = {"label": cf.candidate.label, "parts": [[e.name, t] for e, t in parts],
+                               "params": params, "shrink_volume": sv, "shrink_per_channel": per,
+                               "prediction_cost": prediction_cost(cf, test, sigma, options)}  # fmt: skip
+                best_fit = cf
+
+    # model-free check on the training cases
+    blocks, traces = [], []
+    names = None
+    for c in train_base:
+        tr = trace_disturbances(base.model, c, V=V)
+        F, names = feature_dictionary(c.t, np.asarray(c.U, float), np.asarray(c.Y, float), model.input_names,
+                                      model.output_names)  # fmt: skip
+        blocks.append(F)
+        traces.append(tr.W_trace)
+    features = sparse_features(traces, blocks, names, channels) if names else []
+
+    # how far it shrinks: W and V (W = 0) before/after on the held-out cases
+    before_after = {}
+    after_box = _box(best_fit.model, _decimated(model, best_fit, test, k), V, None) if best_fit is not base else base_box
+    if after_box is not None:
+        before_after["W"] = {ch: {"before": [float(base_box[0][i]), float(base_box[1][i])],
+                                  "after": [float(after_box[0][i]), float(after_box[1][i])],
+                                  "shrink": float((base_box[1][i] - base_box[0][i] + eps[i])
+                                                  / (after_box[1][i] - after_box[0][i] + eps[i]))}
+                             for i, ch in enumerate(channels)}  # fmt: skip
+    vb = _vbox(base.model, test_base)
+    va = _vbox(best_fit.model, _decimated(model, best_fit, test, k)) if best_fit is not base else vb
+    if vb is not None and va is not None:
+        before_after["V"] = {ch: {"before": [float(vb[0][i]), float(vb[1][i])], "after": [float(va[0][i]), float(va[1][i])],
+                                  "shrink": float((vb[1][i] - vb[0][i] + 1e-12) / (va[1][i] - va[0][i] + 1e-12))}
+                             for i, ch in enumerate(model.output_names)}  # fmt: skip
+    bar.close()
+
+    ranked_entries = [e for e, _ in ranked]
+    verdict = _verdict(ranked_entries, named, combination, interrupted)
+    base_info = {"params": {k2: float(v) for k2, v in base.base_params.items()},
+                 "nominal": {k2: float(model.params[k2]) for k2 in fit_names}, "prediction_cost": base_cost,
+                 "box": {ch: [float(a), float(b)] for ch, a, b in zip(channels, base_box[0], base_box[1])},
+                 "V": [[float(a), float(b)] for a, b in zip(V.lo, V.hi)], "noise_sigma": sigma.tolist()}  # fmt: skip
+    split = {"train": [d.name for d in train], "test": [d.name for d in test]}
+    return GapReport(where, ranked_entries, verdict, base_info, combination, features, before_after, split,
+                     time.perf_counter() - t_start)  # fmt: skip
+
+
+def _verdict(ranked, named, combination, interrupted) -> str:
+    pre = "INTERRUPTED, partial result: " if interrupted else ""
+    if not ranked:
+        return pre + "no effect was fitted"
+    best = ranked[0]
+    runner = ranked[1] if len(ranked) > 1 else None
+    if not named:
+        sv = best["shrink_volume"]
+        return pre + ("no effect in the library explains the gap (best: "
+                      f"{best['effect']} on {best['target']}, W volume shrink "
+                      f"{'n/a' if sv is None else f'{sv:.2f}x'}, held-out prediction cost "
+                      f"{-100 * best['prediction_gain']:+.0f} %)")  # fmt: skip
+    params = ", ".join(f"{k} = {v:.4g}" for k, v in best["params"].items())
+    text = (f"{best['effect']} on {best['target']} ({params}) explains the gap: the minimal W volume shrinks "
+            f"{best['shrink_volume']:.2f}x and the held-out prediction cost by {100 * best['prediction_gain']:.0f} %")
+    if runner is not None and runner["shrink_volume"]:
+        text += (f"; margin over the runner-up {runner['effect']} on {runner['target']}: "
+                 f"{best['shrink_volume'] / runner['shrink_volume']:.2f}x in volume")
+    if combination:
+        text += f"; together with a second effect ({combination['label']}) {combination['shrink_volume']:.2f}x"
+    return pre + text

@@ -1,0 +1,263 @@
+"""Library of candidate unmodelled effects for the gap diagnosis (source report sections 4.1.2, 4.2.3).
+
+An :class:`Effect` is a transformation of a model with parameters to fit,
+applied to a named input, output, state or parameter (its *target*):
+
+==================  ========  ===========================================================
+name                target    what the real system does that the model does not
+==================  ========  ===========================================================
+``actuator_lag``    input     ``u_real' = (u - u_real) / tau`` (first-order actuator)
+``dead_time``       input     ``u_real(t) = u(t - T)`` (transport delay)
+``input_offset``    input     ``u_real = u + c``
+``input_scale``     input     ``u_real = k u`` (applied after an offset: ``k (u + c)``, Table 2)
+``output_offset``   output    ``y_measured = y + c`` (sensor bias)
+``output_scale``    output    ``y_measured = k y``
+``tire_saturation`` param     every force term linear in a stiffness ``c`` saturates:
+                              ``c s -> c s / sqrt(1 + (c s / F)^2)`` (smooth, odd, limit F)
+``drag``            state     ``v' -> v' - c_d v |v|`` (quadratic speed term)
+==================  ========  ===========================================================
+
+Input and output effects act on known signals, so the diagnosis applies them
+to the test case (:meth:`Effect.apply_signal`, compiled filters of
+:mod:`reachconf_kernels.signals`) and keeps the base model's compiled code;
+:meth:`Effect.apply_model` builds the equivalent sympy model (an extra lag
+state, a first-order Padé state for the dead time, a substituted input or
+output) for reachability.  Model effects (``tire_saturation``, ``drag``) are
+sympy transformations whose new parameters are fitted through
+:meth:`reachconf.Model.with_params` (compiled once).  Add your own with
+:func:`register_effect`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import sympy as sp
+
+from reachconf.errors import ModelError, OptionsError
+
+__all__ = ["Effect", "EFFECTS", "register_effect", "effect_param_name"]
+
+
+@dataclass(frozen=True)
+class Effect:
+    """A candidate unmodelled effect.
+
+    Parameters
+    ----------
+    name : str
+    kind : {"input", "output", "param", "state"}
+        What the target names.
+    params : tuple of str
+        Names of the effect's parameters.
+    guess : callable
+        ``guess(signal) -> tuple`` initial parameter values from the target
+        signal (``None`` for param/state targets).
+    bounds : callable
+        ``bounds(signal) -> (lo, hi)`` tuples of parameter bounds.
+    signal : callable, optional
+        Input/output effects: ``signal(t, x, theta) -> x'`` (input: what the
+        system really receives; output: what the sensor reports).
+    inverse : callable, optional
+        Output effects: ``inverse(y_measured, theta) -> y``.
+    model : callable, optional
+        ``model(base, target, names) -> Model``: the sympy transformation,
+        ``names`` the model-parameter names of the effect's parameters.
+    targets : callable, optional
+        ``targets(model) -> list of str``: where the effect can act
+        (default: every input/output/state/parameter of its kind).
+    order : int
+        Composition order on one target (offsets before scales: ``k (u + c)``).
+    """
+
+    name: str
+    kind: str
+    params: tuple
+    guess: Callable
+    bounds: Callable
+    signal: Callable | None = None
+    inverse: Callable | None = None
+    model: Callable | None = None
+    targets: Callable | None = None
+    order: int = 0
+    description: str = ""
+
+    def __post_init__(self):
+        if self.kind not in ("input", "output", "param", "state"):
+            raise OptionsError(f"effect {self.name!r}: kind must be input, output, param or state")
+        if self.kind in ("input", "output") and self.signal is None:
+            raise OptionsError(f"effect {self.name!r}: an {self.kind} effect needs a signal transformation")
+        if self.kind == "output" and self.inverse is None:
+            raise OptionsError(f"effect {self.name!r}: an output effect needs its inverse")
+        if self.kind in ("param", "state") and self.model is None:
+            raise OptionsError(f"effect {self.name!r}: a {self.kind} effect needs a model transformation")
+
+    def applicable(self, model) -> list:
+        """Targets of ``model`` this effect can act on."""
+        if self.targets is not None:
+            return list(self.targets(model))
+        return list({"input": model.input_names, "output": model.output_names, "state": model.state_names,
+                     "param": model.param_names}[self.kind])  # fmt: skip
+
+    def apply_signal(self, t, x, theta):
+        return self.signal(np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(x, dtype=float),
+                           tuple(float(v) for v in theta))  # fmt: skip
+
+    def apply_model(self, base, target: str, theta=None):
+        """The base model with this effect on ``target`` as a new :class:`~reachconf.Model`.
+
+        The effect's parameters become model parameters named by
+        :func:`effect_param_name`, set to ``theta`` (or the bounds' midpoint).
+        """
+        names = tuple(effect_param_name(self.name, p, target) for p in self.params)
+        if self.model is not None:
+            new = self.model(base, target, names)
+        else:
+            new = _signal_effect_model(self, base, target, names)
+        if theta is not None:
+            new = new.with_params(**dict(zip(names, map(float, theta))))
+        return new
+
+
+def effect_param_name(effect: str, param: str, target: str) -> str:
+    """Model-parameter name of an effect parameter, e.g. ``actuator_lag_tau_delta``."""
+    return f"{effect}_{param}_{target}"
+
+
+# --------------------------------------------------------------------------- model rewriting
+def _rebuild(base, f_expr, h_expr=None, states=None, params=None, name=None):
+    from reachconf.model import Model
+
+    states = tuple(states or base.state_names)
+    new_params = dict(base.params)
+    new_params.update(params or {})
+    h_expr = base.h_expr if h_expr is None else h_expr
+    outputs = dict(zip(base.output_names, h_expr))
+    return Model(states=states, dynamics=list(f_expr), inputs=base.input_names, disturbances=base.disturbance_names,
+                 params=new_params, outputs=outputs, name=name or base.name,
+                 description=base.description)  # fmt: skip
+
+
+def _sym(name):
+    return sp.Symbol(name, real=True)
+
+
+def _signal_effect_model(effect, base, target, names):
+    """sympy version of an input/output effect (for reachability and user models)."""
+    u = _sym(target)
+    nm = f"{base.name}+{effect.name}({target})"
+    if effect.kind == "input":
+        if effect.name == "actuator_lag":
+            xa = _sym(f"{target}_act")
+            tau = _sym(names[0])
+            f = [e.subs(u, xa) for e in base.f_expr] + [(u - xa) / tau]
+            h = [e.subs(u, xa) for e in base.h_expr]
+            return _rebuild(base, f, h, base.state_names + (f"{target}_act",), {names[0]: 0.1}, nm)
+        if effect.name == "dead_time":
+            # first-order Padé: u(t - T) ~ 2 z - u with z' = 2 (u - z) / T
+            z = _sym(f"{target}_pade")
+            T = _sym(names[0])
+            ue = 2 * z - u
+            f = [e.subs(u, ue) for e in base.f_expr] + [2 * (u - z) / T]
+            h = [e.subs(u, ue) for e in base.h_expr]
+            return _rebuild(base, f, h, base.state_names + (f"{target}_pade",), {names[0]: 0.05}, nm)
+        c = _sym(names[0])
+        ue = u + c if effect.name == "input_offset" else c * u
+        default = 0.0 if effect.name == "input_offset" else 1.0
+        return _rebuild(base, [e.subs(u, ue) for e in base.f_expr], [e.subs(u, ue) for e in base.h_expr], None,
+                        {names[0]: default}, nm)  # fmt: skip
+    if effect.kind == "output":
+        i = base.output_names.index(target)
+        c = _sym(names[0])
+        h = list(base.h_expr)
+        h[i] = h[i] + c if effect.name == "output_offset" else c * h[i]
+        return _rebuild(base, base.f_expr, h, None, {names[0]: 0.0 if effect.name == "output_offset" else 1.0}, nm)
+    raise ModelError(f"effect {effect.name!r} has no model transformation")
+
+
+def _tire_saturation_model(base, target, names):
+    c = _sym(target)
+    F = _sym(names[0])
+    hit = []
+
+    def saturate(e):
+        hit.append(e)
+        return e / sp.sqrt(1 + (e / F) ** 2)
+
+    f = [e.replace(lambda a: a.is_Mul and c in a.args, saturate) for e in base.f_expr]
+    if not hit:
+        raise ModelError(f"tire_saturation: no force term is a product with parameter {target!r}")
+    return _rebuild(base, f, None, None, {names[0]: 10.0}, f"{base.name}+tire_saturation({target})")
+
+
+def _drag_model(base, target, names):
+    i = base.state_names.index(target)
+    v = _sym(target)
+    cd = _sym(names[0])
+    f = list(base.f_expr)
+    f[i] = f[i] - cd * v * sp.sqrt(v**2 + sp.Rational(1, 10**6))  # smooth v |v| (Abs has no second derivative)
+    return _rebuild(base, f, None, None, {names[0]: 0.0}, f"{base.name}+drag({target})")
+
+
+# --------------------------------------------------------------------------- the library
+def _lag(t, u, th):
+    from reachconf_kernels.signals import first_order_lag
+
+    return first_order_lag(t, u, max(th[0], 1e-6))
+
+
+def _delay(t, u, th):
+    from reachconf_kernels.signals import transport_delay
+
+    return transport_delay(t, u, max(th[0], 0.0))
+
+
+def _spread(x):
+    s = float(np.std(x))
+    return s if s > 0 else max(float(np.max(np.abs(x))), 1.0)
+
+
+def _stiffness_params(model):
+    """Parameters that multiply a force-like term (candidate cornering/spring stiffnesses): names starting with c_."""
+    return [p for p in model.param_names if p.startswith("c_")]
+
+
+def _velocity_states(model):
+    return [s for s in model.state_names if s.startswith("v")]
+
+
+EFFECTS: dict = {}
+
+
+def register_effect(effect: Effect) -> Effect:
+    """Add an effect to the library (replaces one of the same name)."""
+    if not isinstance(effect, Effect):
+        raise OptionsError(f"register_effect needs an Effect, got {type(effect).__name__}")
+    EFFECTS[effect.name] = effect
+    return effect
+
+
+register_effect(Effect("actuator_lag", "input", ("tau",), lambda x: (0.05,), lambda x: ((0.002,), (1.0,)),
+                       signal=_lag, order=2, description="first-order actuator lag, time constant tau [s]"))  # fmt: skip
+register_effect(Effect("dead_time", "input", ("T",), lambda x: (0.04,), lambda x: ((0.0,), (0.5,)),
+                       signal=_delay, order=3, description="transport delay T [s] on an input"))  # fmt: skip
+register_effect(Effect("input_offset", "input", ("c",), lambda x: (0.0,),
+                       lambda x: ((-2 * _spread(x),), (2 * _spread(x),)),
+                       signal=lambda t, u, th: u + th[0], order=0, description="additive input offset c"))  # fmt: skip
+register_effect(Effect("input_scale", "input", ("k",), lambda x: (1.0,), lambda x: ((0.2,), (5.0,)),
+                       signal=lambda t, u, th: th[0] * u, order=1, description="input gain k"))  # fmt: skip
+register_effect(Effect("output_offset", "output", ("c",), lambda x: (0.0,),
+                       lambda x: ((-_spread(x),), (_spread(x),)),
+                       signal=lambda t, y, th: y + th[0], inverse=lambda y, th: y - th[0], order=0,
+                       description="sensor bias c (measured = true + c)"))  # fmt: skip
+register_effect(Effect("output_scale", "output", ("k",), lambda x: (1.0,), lambda x: ((0.2,), (5.0,)),
+                       signal=lambda t, y, th: th[0] * y, inverse=lambda y, th: y / th[0], order=1,
+                       description="sensor gain k (measured = k true)"))  # fmt: skip
+register_effect(Effect("tire_saturation", "param", ("F",), lambda x: (10.0,), lambda x: ((0.5,), (200.0,)),
+                       model=_tire_saturation_model, targets=_stiffness_params,
+                       description="force terms linear in stiffness c saturate at F: c s -> c s / sqrt(1 + (c s / F)^2)"))  # fmt: skip
+register_effect(Effect("drag", "state", ("c_d",), lambda x: (0.0,), lambda x: ((-0.05,), (0.05,)),
+                       model=_drag_model, targets=_velocity_states,
+                       description="quadratic speed term v' -= c_d v |v| on a velocity state"))  # fmt: skip
