@@ -167,3 +167,21 @@ def test_cli_diagnose(tmp_path):
         assert main(["diagnose", str(run)]) == 2
     finally:
         sys.path.remove(str(tmp_path))
+
+
+def test_report_files_and_reach_tubes(tmp_path):
+    m, suite = _oscillator_suite(lag=0.2, n=4, seed=3)
+    rep = rc.diagnose(m, suite, effects=["actuator_lag", "dead_time"], progress=False,
+                      options=DiagnoseOptions(tube_horizon=1.0))  # fmt: skip
+    drawn = [tb for tb in rep.tubes if "tube" in tb]
+    assert [tb["label"] for tb in drawn] == ["base", "with effect"]
+    paths = rep.plot(tmp_path)
+    assert {"effects.png", "boxes.png", "tubes.png"} <= {p.split("/")[-1] for p in paths}
+    # soundness of the drawn tube: the measured positions lie in the tube's (X, Y) hull inflated by V
+    from reachconf.conformance.trace import _output_states  # noqa: F401
+
+    for tb in drawn:
+        lo = np.min([s.interval().lo[:2] for s in tb["tube"].time_point_sets], axis=0)
+        hi = np.max([s.interval().hi[:2] for s in tb["tube"].time_point_sets], axis=0)
+        vr = np.array(rep.base["V"])[:2, 1]
+        assert np.all(tb["measured"] >= lo - vr - 1e-9) and np.all(tb["measured"] <= hi + vr + 1e-9)

@@ -190,6 +190,33 @@ def _actuator_vs_process(model, fit, cases, V, k, min_shrink):
             "box_requested": [list(map(float, br[0])), list(map(float, br[1]))], "verdict": verdict}  # fmt: skip
 
 
+def _tubes(model, fits_boxes, case_of, horizon, V):
+    """X-Y (first two states) reach tubes of one held-out case, base and best model on the same axes."""
+    from reachconf.errors import ReachconfError
+    from reachconf.reach import ReachOptions, reach
+    from reachconf.sets import Interval
+
+    tubes = []
+    for label, fit, box in fits_boxes:
+        c = case_of(fit)
+        keep = c.t <= c.t[0] + horizon + 1e-9
+        t, U, Y = c.t[keep], np.asarray(c.U, float)[keep], np.asarray(c.Y, float)[keep]
+        from reachconf.conformance.trace import _output_states
+
+        direct = _output_states(fit.model)
+        if direct is None:
+            return []
+        vr = 0.5 * (V.hi - V.lo)[direct]
+        X0 = Interval(Y[0, direct] - vr, Y[0, direct] + vr)
+        try:
+            tube = reach(fit.model, X0, t, inputs=U, W=Interval(box[0], box[1]), options=ReachOptions(progress=False))
+        except ReachconfError as exc:
+            tubes.append({"label": label, "error": str(exc)})
+            continue
+        tubes.append({"label": label, "tube": tube, "measured": Y[:, direct[:2]]})
+    return tubes
+
+
 def diagnose(model, suite, effects="all", holdout: float = 0.3, fit_params=True, seed: int = 0, V=None,
              options: DiagnoseOptions | None = None, progress: bool = True) -> GapReport:  # fmt: skip
     """Diagnose the sim-to-real gap of ``model`` on ``suite`` (see the module docstring).
@@ -354,6 +381,11 @@ def diagnose(model, suite, effects="all", holdout: float = 0.3, fit_params=True,
         before_after["V"] = {ch: {"before": [float(vb[0][i]), float(vb[1][i])], "after": [float(va[0][i]), float(va[1][i])],
                                   "shrink": float((vb[1][i] - vb[0][i] + 1e-12) / (va[1][i] - va[0][i] + 1e-12))}
                              for i, ch in enumerate(model.output_names)}  # fmt: skip
+    tubes = []
+    if after_box is not None and options.tube_horizon > 0:
+        first = test[0]
+        tubes = _tubes(model, [("base", base, base_box), ("with effect", best_fit, after_box)],
+                       lambda f: _decimated(model, f, [first], k)[0], options.tube_horizon, V)  # fmt: skip
     bar.close()
 
     ranked_entries = [e for e, _ in ranked]
@@ -363,8 +395,10 @@ def diagnose(model, suite, effects="all", holdout: float = 0.3, fit_params=True,
                  "box": {ch: [float(a), float(b)] for ch, a, b in zip(channels, base_box[0], base_box[1])},
                  "V": [[float(a), float(b)] for a, b in zip(V.lo, V.hi)], "noise_sigma": sigma.tolist()}  # fmt: skip
     split = {"train": [d.name for d in train], "test": [d.name for d in test]}
-    return GapReport(where, ranked_entries, verdict, base_info, combination, features, before_after, split,
-                     time.perf_counter() - t_start)  # fmt: skip
+    report = GapReport(where, ranked_entries, verdict, base_info, combination, features, before_after, split,
+                       time.perf_counter() - t_start)  # fmt: skip
+    report.tubes = tubes
+    return report
 
 
 def _verdict(ranked, named, combination, interrupted) -> str:

@@ -52,6 +52,8 @@ class DiagnoseOptions:
         ... and smallest relative reduction of the held-out prediction cost.
     combine : bool, default True
         Also try the best effect together with each runner-up (e.g. a scale and an offset).
+    tube_horizon : float, default 2.0
+        Horizon (s) of the before/after reach tubes of one held-out case (0: none).
     """
 
     window: float = 1.0
@@ -65,6 +67,7 @@ class DiagnoseOptions:
     min_shrink: float = 1.0
     min_improvement: float = 0.2
     combine: bool = True
+    tube_horizon: float = 2.0
 
     def __post_init__(self):
         for name in ("window", "stride", "prior", "param_bounds", "box_rate"):
@@ -181,6 +184,16 @@ def _states(model, Ys, U, direct):
     return state_estimate(model, TestCase("windows", "default", t, U, Ys, model.input_names, model.output_names))
 
 
+def _plain_outputs(model):
+    """State index of every output if each output is a state (``y = x`` part), else None (cached)."""
+    key = "_plain_outputs"
+    if key not in model.__dict__:
+        states = list(model.z_symbols[: model.n])
+        idx = [states.index(e) if e in states else None for e in model.h_expr]
+        model.__dict__[key] = None if any(i is None for i in idx) else np.array(idx)
+    return model.__dict__[key]
+
+
 def window_residuals(model, cand: Candidate, theta_eff: dict, data, sigma, substeps):
     """Normalised multi-step prediction residuals of all windows of all cases (one flat array)."""
     from reachconf_kernels.integrate import rk4_windows
@@ -188,6 +201,7 @@ def window_residuals(model, cand: Candidate, theta_eff: dict, data, sigma, subst
     comp = model.compiled()
     pv = model.param_vector
     direct = _output_states(model)
+    plain = _plain_outputs(model)
     out = []
     for d in data:
         U, Ym = transformed_signals(model, cand, theta_eff, d.t, d.U, d.Y)
@@ -195,7 +209,7 @@ def window_residuals(model, cand: Candidate, theta_eff: dict, data, sigma, subst
         X0 = _states(model, Ysm[d.starts], U[d.starts], direct)
         P = rk4_windows(comp.f, np.ascontiguousarray(X0), d.starts, U, d.t, pv, model.q, d.length, int(substeps))
         idx = (d.starts[:, None] + 1 + np.arange(d.length)[None, :]).reshape(-1)
-        Yp = _outputs(model, P.reshape(-1, model.n), U[idx])
+        Yp = P.reshape(-1, model.n)[:, plain] if plain is not None else _outputs(model, P.reshape(-1, model.n), U[idx])
         if not np.all(np.isfinite(Yp)):
             Yp = np.where(np.isfinite(Yp), Yp, 1e6)
         out.append(((Yp - Ym[idx]) / sigma).reshape(-1))

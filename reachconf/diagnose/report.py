@@ -65,6 +65,7 @@ class GapReport:
     before_after: dict = field(default_factory=dict)
     split: dict = field(default_factory=dict)
     seconds: float = 0.0
+    tubes: list = field(default_factory=list, repr=False)  # before/after reach tubes (not serialised)
 
     @property
     def best(self) -> dict | None:
@@ -166,6 +167,24 @@ class GapReport:
             fig.suptitle("minimal trace-conformant W, before/after", fontsize=9)
             fig.tight_layout()
             paths.append(_save(fig, out / "boxes.png", atomic_write_bytes))
+        drawn = [tb for tb in self.tubes if "tube" in tb]
+        if drawn:
+            fig, ax = plt.subplots(figsize=(8, 4))
+            colors = {"base": "tab:gray", "with effect": "tab:green"}
+            for tb in drawn:
+                tb["tube"].plot(dims=tuple(tb["tube"].state_names[:2]), ax=ax, color=colors.get(tb["label"], "tab:blue"),
+                                alpha=0.35)  # fmt: skip
+            ax.plot(*drawn[0]["measured"].T, "k.", ms=2, label="measured")
+            from matplotlib.patches import Patch
+
+            ax.legend(handles=[Patch(color=colors[t["label"]], alpha=0.5, label=f"{t['label']} (W minimal box)")
+                               for t in drawn if t["label"] in colors] + ax.get_legend_handles_labels()[0],
+                      fontsize=8)  # fmt: skip
+            ax.set_xlabel("X [m]")
+            ax.set_ylabel("Y [m]")
+            ax.set_title("reach tubes of a held-out case, before and after modelling the effect", fontsize=9)
+            fig.tight_layout()
+            paths.append(_save(fig, out / "tubes.png", atomic_write_bytes))
         return paths
 
 
