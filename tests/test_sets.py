@@ -210,3 +210,37 @@ def test_top_level_exports_and_quickstart(tmp_path):
     Z.plot(ax, dims=(0, 1))
     fig.savefig(tmp_path / "z.png")
     assert (tmp_path / "z.png").stat().st_size > 1000
+
+
+def _exact_support(c, G, d):
+    return float(d @ c + np.sum(np.abs(G.T @ d)))
+
+
+@settings(max_examples=40, deadline=None)
+@given(seeds, dims, gens)
+def test_exact_operations_are_tight(seed, n, m):
+    """Sound is not enough: linear map, Minkowski sum, Cartesian product and interval hull are exact.
+
+    Their support functions equal the closed-form ones of the exact sets (up to outward rounding), and every
+    face of the interval hull is touched by an extreme point of the zonotope.
+    """
+    rng = np.random.default_rng(seed)
+    Z = random_zonotope(rng, n, m)
+    Z2 = random_zonotope(rng, n, 4)
+    A = rng.normal(size=(3, n))
+    AZ, S, C = A @ Z, Z + Z2, Z.cartesian(Z2)
+    for _ in range(8):
+        d3, dn, d2n = rng.normal(size=3), rng.normal(size=n), rng.normal(size=2 * n)
+        exact = _exact_support(A @ Z.center, A @ Z.generators, d3)
+        assert abs(AZ.support(d3) - exact) <= 1e-9 * (1 + abs(exact))
+        exact = _exact_support(Z.center, Z.generators, dn) + _exact_support(Z2.center, Z2.generators, dn)
+        assert abs(S.support(dn) - exact) <= 1e-9 * (1 + abs(exact))
+        exact = _exact_support(Z.center, Z.generators, d2n[:n]) + _exact_support(Z2.center, Z2.generators, d2n[n:])
+        assert abs(C.support(d2n) - exact) <= 1e-9 * (1 + abs(exact))
+    box = Z.interval()
+    G = Z.generators
+    for i in range(n):  # the extreme point sign(G[i]) attains the upper bound of dimension i, -sign the lower
+        top = Z.center[i] + np.abs(G[i]).sum()
+        bottom = Z.center[i] - np.abs(G[i]).sum()
+        assert box.hi[i] >= top and box.hi[i] - top <= 1e-12 * (1 + abs(top))
+        assert box.lo[i] <= bottom and bottom - box.lo[i] <= 1e-12 * (1 + abs(bottom))

@@ -153,3 +153,28 @@ def test_serial_processes_and_dask_agree(model, suite):
             assert o.alpha == cs.alpha
             np.testing.assert_array_equal(o.W_RC.lo, cs.W_RC.lo)
             np.testing.assert_array_equal(o.W_RC.hi, cs.W_RC.hi)
+
+
+def test_bad_options_and_sets_raise_reachconf_errors():
+    import numpy as np
+    import pytest
+
+    import reachconf as rc
+    from reachconf.conformance import SynthesisOptions
+    from reachconf.errors import OptionsError, ReachconfError
+    from reachconf.runner import run_cases
+
+    with pytest.raises(OptionsError):
+        SynthesisOptions(alpha_iterations=0)
+    with pytest.raises(OptionsError):
+        run_cases(abs, [1, 2], workers=0)
+    m = rc.models.get_model("vanderpol") if hasattr(rc.models, "get_model") else None
+    assert m is not None
+    suite = rc.TestSuite([rc.TestCase("c", "g", np.array([0.0, 0.1, 0.2]), np.zeros((3, m.m)),
+                                      np.zeros((3, m.p)), m.input_names, m.output_names)])  # fmt: skip
+    with pytest.raises(ReachconfError):  # V of the wrong dimension
+        rc.reachset_conformance(m, suite, W=rc.Interval(-np.ones(m.q), np.ones(m.q)),
+                                V=rc.Interval(-np.ones(m.p + 1), np.ones(m.p + 1)))  # fmt: skip
+    with pytest.raises(OptionsError):
+        rc.pareto_front(m, suite, rc.Interval(-np.ones(m.p), np.ones(m.p)), rc.Interval(-np.ones(m.q), np.ones(m.q)),
+                        check="x")  # fmt: skip
