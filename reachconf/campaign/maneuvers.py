@@ -18,7 +18,7 @@ import numpy as np
 
 from reachconf.errors import OptionsError
 
-__all__ = ["MANEUVERS", "reference_path"]
+__all__ = ["MANEUVERS", "reference_path", "excitation_path"]
 
 #: maneuver code -> description
 MANEUVERS = {"LC": "lane change", "SW": "swerve", "DLC": "double lane change", "SL": "slalom"}
@@ -102,3 +102,45 @@ def reference_path(kind: str, a_lat: float, v: float = 10.0, rate: float = 100.0
     slope = np.sqrt(1 + dy**2)
     return {"t": t, "X_ref": x, "Y_ref": y, "psi_ref": np.arctan(dy), "v_ref": np.full_like(t, v),
             "kappa_ref": ddy / slope**3, "length": float(arc[-1])}  # fmt: skip
+
+
+def excitation_path(a_lat: float = 3.0, v: float = 10.0, dv: float = 2.0, duration: float = 14.0,
+                    wavelengths=(40.0, 6.0), speed_period: float = 7.0, rate: float = 100.0) -> dict:  # fmt: skip
+    """A diagnosis maneuver: a lateral chirp at a varying speed (kind ``"EX"``).
+
+    The path weaves with a wavelength falling from ``wavelengths[0]`` to
+    ``wavelengths[1]`` (steering from about 0.25 Hz to 2 Hz), scaled to a peak
+    lateral acceleration ``a_lat`` at the top speed, while the reference speed
+    swings ``v +- dv`` with period ``speed_period``: the steering excites lags
+    and delays over a band of frequencies, the speed swings the acceleration
+    channel, so that lag, dead time, scale and offset leave different marks.
+    Same keys as :func:`reference_path` (``v_ref`` varies).
+    """
+    if not (a_lat > 0 and v > dv >= 0 and duration > 0 and rate > 0):
+        raise OptionsError("excitation_path: need a_lat > 0, v > dv >= 0, duration > 0, rate > 0")
+    t = np.round(np.arange(0.0, duration + 1e-9, 1.0 / rate), 10)
+    w = 2 * np.pi / speed_period
+    v_ref = v + dv * np.sin(w * t)
+    s = v * t + dv / w * (1 - np.cos(w * t))  # arc length of the reference point
+    total = float(s[-1]) + 1.0
+    lam0, lam1 = wavelengths
+    xs = np.linspace(0.0, total, int(total / 0.005) + 1)
+    # chirp phase: local wavenumber k(x) falls linearly in wavelength
+    lam = lam0 + (lam1 - lam0) * xs / total
+    phase = np.concatenate([[0.0], np.cumsum(0.5 * (2 * np.pi / lam[1:] + 2 * np.pi / lam[:-1]) * np.diff(xs))])
+    env, _, _ = _transition(xs, 0.0, 10.0, 1.0)
+    fall, _, _ = _transition(xs, total - 10.0, 10.0, 1.0)
+    shape = (env - fall) * np.sin(phase)
+    d1 = np.gradient(shape, xs)
+    d2 = np.gradient(d1, xs)
+    amp = a_lat / (np.max(np.abs(d2)) * (v + dv) ** 2)
+    for _ in range(3):  # scale so that the peak of v_ref^2 kappa along the run is a_lat
+        y, dy, ddy = amp * shape, amp * d1, amp * d2
+        seg = np.sqrt(1 + dy**2)
+        arc = np.concatenate([[0.0], np.cumsum(0.5 * (seg[1:] + seg[:-1]) * np.diff(xs))])
+        x = np.interp(s, arc, xs)
+        yi, dyi, ddyi = (np.interp(x, xs, a) for a in (y, dy, ddy))
+        slope = np.sqrt(1 + dyi**2)
+        amp *= a_lat / np.max(np.abs(v_ref**2 * ddyi / slope**3))
+    return {"t": t, "X_ref": x, "Y_ref": yi, "psi_ref": np.arctan(dyi), "v_ref": v_ref,
+            "kappa_ref": ddyi / slope**3, "length": float(s[-1])}  # fmt: skip

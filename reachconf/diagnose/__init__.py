@@ -13,10 +13,11 @@ training and held-out test cases:
    gap sits on the actuator or the process side (the two set-ups of Figure 1);
 3. *which* effect: every (effect, target) of the library (:mod:`.effects`) is
    fitted jointly with the base parameters (kept near nominal by a prior) and
-   scored on the held-out cases by the multi-step prediction cost; the best
-   ``top`` are scored by the minimal trace-conformant disturbance box (the SCP
-   of synthesis step 2 under ``V``) against the refitted base, ranked by the
-   shrink of its volume; the best is combined with each runner-up;
+   scored and ranked on the held-out cases by the multi-step prediction cost;
+   the best ``top`` are also scored by the minimal trace-conformant
+   disturbance box (the SCP of synthesis step 2 under ``V``) against the
+   refitted base: the shrink of the smallest zero-centred box containing it
+   (volume and per channel); the best is combined with each runner-up;
 4. a model-free check (:mod:`.sparse`): sparse regression of the base model's
    disturbance traces on lagged/differentiated inputs and state products;
 5. *how far*: the minimal trace-conformant ``W`` (and ``V`` with ``W = 0``)
@@ -133,10 +134,18 @@ def _decimated(model, fit, cases, k):
     return out
 
 
+def _size(box):
+    """Widths of the smallest box centred at ``w = 0`` that contains ``box``.
+
+    The disturbance a model needs is measured from its nominal ``w = 0``: an
+    unmodelled constant (an offset) moves the minimal box away from 0 without
+    widening it, so raw widths would not see it.
+    """
+    return 2.0 * np.maximum(np.abs(box[0]), np.abs(box[1]))
+
+
 def _shrink(base_box, box, eps, channels):
-    wb = base_box[1] - base_box[0]
-    we = box[1] - box[0]
-    per = (wb + eps) / (we + eps)
+    per = (_size(base_box) + eps) / (_size(box) + eps)
     return float(np.prod(per)), dict(zip(channels, map(float, per)))
 
 
@@ -180,7 +189,7 @@ def _actuator_vs_process(model, fit, cases, V, k, min_shrink):
     br = _box(fit.model, requested, V, None)
     if bm is None or br is None:
         return None
-    eps = 1e-9 + 0.05 * np.maximum(bm[1] - bm[0], br[1] - br[0])
+    eps = 1e-9 + 0.05 * np.maximum(_size(bm), _size(br))
     ratio, per = _shrink(br, bm, eps, model.disturbance_names)
     side = "actuators" if ratio >= min_shrink else "process model"
     verdict = (f"with the requested instead of the measured actuator signals ({', '.join(have)}) the minimal W "
@@ -372,14 +381,13 @@ def diagnose(model, suite, effects="all", holdout: float = 0.3, fit_params=True,
     if after_box is not None:
         before_after["W"] = {ch: {"before": [float(base_box[0][i]), float(base_box[1][i])],
                                   "after": [float(after_box[0][i]), float(after_box[1][i])],
-                                  "shrink": float((base_box[1][i] - base_box[0][i] + eps[i])
-                                                  / (after_box[1][i] - after_box[0][i] + eps[i]))}
+                                  "shrink": float((_size(base_box)[i] + eps[i]) / (_size(after_box)[i] + eps[i]))}
                              for i, ch in enumerate(channels)}  # fmt: skip
     vb = _vbox(base.model, test_base)
     va = _vbox(best_fit.model, _decimated(model, best_fit, test, k)) if best_fit is not base else vb
     if vb is not None and va is not None:
         before_after["V"] = {ch: {"before": [float(vb[0][i]), float(vb[1][i])], "after": [float(va[0][i]), float(va[1][i])],
-                                  "shrink": float((vb[1][i] - vb[0][i] + 1e-12) / (va[1][i] - va[0][i] + 1e-12))}
+                                  "shrink": float((_size(vb)[i] + 1e-12) / (_size(va)[i] + 1e-12))}
                              for i, ch in enumerate(model.output_names)}  # fmt: skip
     tubes = []
     if after_box is not None and options.tube_horizon > 0:
