@@ -185,3 +185,13 @@ def test_report_files_and_reach_tubes(tmp_path):
         hi = np.max([s.interval().hi[:2] for s in tb["tube"].time_point_sets], axis=0)
         vr = np.array(rep.base["V"])[:2, 1]
         assert np.all(tb["measured"] >= lo - vr - 1e-9) and np.all(tb["measured"] <= hi + vr + 1e-9)
+
+
+def test_diagnose_with_defaults_alone():
+    """The whole library on every target, all parameters refitted, V estimated from the data."""
+    m, suite = _oscillator_suite(lag=0.2, n=4, seed=7)
+    rep = rc.diagnose(m, suite, progress=False)
+    assert (rep.best["effect"], rep.best["target"]) == ("actuator_lag", "u")
+    targets = {(e["effect"], e["target"]) for e in rep.ranked_effects}
+    assert ("drag", "v") in targets and ("output_offset", "p") in targets and ("dead_time", "u") in targets
+    assert len(rep.base["V"]) == 2 and all(lo < 0 < hi for lo, hi in rep.base["V"])

@@ -105,19 +105,23 @@ def reference_path(kind: str, a_lat: float, v: float = 10.0, rate: float = 100.0
 
 
 def excitation_path(a_lat: float = 3.0, v: float = 10.0, dv: float = 2.0, duration: float = 14.0,
-                    wavelengths=(40.0, 6.0), speed_period: float = 7.0, rate: float = 100.0) -> dict:  # fmt: skip
+                    wavelengths=(40.0, 6.0), speed_period: float = 7.0, steer_rate: float = 0.3,
+                    wheelbase: float = 2.7, rate: float = 100.0) -> dict:  # fmt: skip
     """A diagnosis maneuver: a lateral chirp at a varying speed (kind ``"EX"``).
 
     The path weaves with a wavelength falling from ``wavelengths[0]`` to
-    ``wavelengths[1]`` (steering from about 0.25 Hz to 2 Hz), scaled to a peak
-    lateral acceleration ``a_lat`` at the top speed, while the reference speed
-    swings ``v +- dv`` with period ``speed_period``: the steering excites lags
-    and delays over a band of frequencies, the speed swings the acceleration
-    channel, so that lag, dead time, scale and offset leave different marks.
-    Same keys as :func:`reference_path` (``v_ref`` varies).
+    ``wavelengths[1]`` (steering from about 0.25 Hz to 2 Hz) while the
+    reference speed swings ``v +- dv`` with period ``speed_period``: the
+    steering excites lags and delays over a band of frequencies, the speed
+    swings the acceleration channel, so that lag, dead time, scale and offset
+    leave different marks.  The weave's amplitude grows with the cube of the
+    wavelength, which keeps the kinematic steering rate ``L v dkappa/ds`` of
+    the path constant along it; the whole is scaled so that this rate stays
+    below ``steer_rate`` (rad/s; the plant's steering-rate limit is 0.4) and the
+    lateral acceleration below ``a_lat``.  Same keys as :func:`reference_path`.
     """
-    if not (a_lat > 0 and v > dv >= 0 and duration > 0 and rate > 0):
-        raise OptionsError("excitation_path: need a_lat > 0, v > dv >= 0, duration > 0, rate > 0")
+    if not (a_lat > 0 and v > dv >= 0 and duration > 0 and rate > 0 and steer_rate > 0):
+        raise OptionsError("excitation_path: need a_lat > 0, v > dv >= 0, and positive duration, steer_rate, rate")
     t = np.round(np.arange(0.0, duration + 1e-9, 1.0 / rate), 10)
     w = 2 * np.pi / speed_period
     v_ref = v + dv * np.sin(w * t)
@@ -125,22 +129,21 @@ def excitation_path(a_lat: float = 3.0, v: float = 10.0, dv: float = 2.0, durati
     total = float(s[-1]) + 1.0
     lam0, lam1 = wavelengths
     xs = np.linspace(0.0, total, int(total / 0.005) + 1)
-    # chirp phase: local wavenumber k(x) falls linearly in wavelength
     lam = lam0 + (lam1 - lam0) * xs / total
     phase = np.concatenate([[0.0], np.cumsum(0.5 * (2 * np.pi / lam[1:] + 2 * np.pi / lam[:-1]) * np.diff(xs))])
     env, _, _ = _transition(xs, 0.0, 10.0, 1.0)
     fall, _, _ = _transition(xs, total - 10.0, 10.0, 1.0)
-    shape = (env - fall) * np.sin(phase)
+    shape = (env - fall) * (lam / lam0) ** 3 * np.sin(phase)
     d1 = np.gradient(shape, xs)
     d2 = np.gradient(d1, xs)
-    amp = a_lat / (np.max(np.abs(d2)) * (v + dv) ** 2)
-    for _ in range(3):  # scale so that the peak of v_ref^2 kappa along the run is a_lat
-        y, dy, ddy = amp * shape, amp * d1, amp * d2
-        seg = np.sqrt(1 + dy**2)
-        arc = np.concatenate([[0.0], np.cumsum(0.5 * (seg[1:] + seg[:-1]) * np.diff(xs))])
-        x = np.interp(s, arc, xs)
-        yi, dyi, ddyi = (np.interp(x, xs, a) for a in (y, dy, ddy))
-        slope = np.sqrt(1 + dyi**2)
-        amp *= a_lat / np.max(np.abs(v_ref**2 * ddyi / slope**3))
+    d3 = np.gradient(d2, xs)
+    v_top = v + dv
+    amp = min(a_lat / (np.max(np.abs(d2)) * v_top**2), steer_rate / (wheelbase * v_top * np.max(np.abs(d3))))
+    y, dy, ddy = amp * shape, amp * d1, amp * d2
+    seg = np.sqrt(1 + dy**2)
+    arc = np.concatenate([[0.0], np.cumsum(0.5 * (seg[1:] + seg[:-1]) * np.diff(xs))])
+    x = np.interp(s, arc, xs)
+    yi, dyi, ddyi = (np.interp(x, xs, a) for a in (y, dy, ddy))
+    slope = np.sqrt(1 + dyi**2)
     return {"t": t, "X_ref": x, "Y_ref": yi, "psi_ref": np.arctan(dyi), "v_ref": v_ref,
             "kappa_ref": ddyi / slope**3, "length": float(s[-1])}  # fmt: skip

@@ -13,8 +13,9 @@ training and held-out test cases:
    gap sits on the actuator or the process side (the two set-ups of Figure 1);
 3. *which* effect: every (effect, target) of the library (:mod:`.effects`) is
    fitted jointly with the base parameters (kept near nominal by a prior) and
-   scored and ranked on the held-out cases by the multi-step prediction cost;
-   the best ``top`` are also scored by the minimal trace-conformant
+   scored and ranked on the held-out cases by the multi-step prediction cost
+   (candidates within ``tie`` of the best cost are ordered by the box
+   shrink); the best ``top`` are also scored by the minimal trace-conformant
    disturbance box (the SCP of synthesis step 2 under ``V``) against the
    refitted base: the shrink of the smallest zero-centred box containing it
    (volume and per channel); the best is combined with each runner-up;
@@ -124,13 +125,32 @@ def _vbox(model, cases):
     return np.min([r[0] for r in rs], axis=0), np.max([r[1] for r in rs], axis=0)
 
 
-def _decimated(model, fit, cases, k):
+def _decimated(model, fit, cases, k, segment=None):
+    """Held-out cases as the candidate model sees them, decimated; cut into ``segment``-second pieces if given.
+
+    The minimal box of a whole open-loop trace is dominated by the drift that
+    small errors build up over many seconds; boxes of short segments (each
+    free to start anywhere in the measurement's V) measure what the effect
+    changes.
+    """
     from reachconf.diagnose.fit import transformed_case
 
     out = []
     for d in cases:
         c = transformed_case(model, d.case, fit.candidate, fit.effect_params)
-        out.append(c.decimate(k) if k > 1 else c)
+        out += _pieces(c.decimate(k) if k > 1 else c, segment)
+    return out
+
+
+def _pieces(c, segment):
+    if segment is None:
+        return [c]
+    out = []
+    t0, t_end = float(c.t[0]), float(c.t[-1])
+    while t0 + 0.5 * segment <= t_end:
+        t1 = min(t0 + segment, t_end)
+        out.append(c.segment(t0, t1))
+        t0 = t1
     return out
 
 
@@ -161,7 +181,7 @@ def _entry(fit, cost, base_cost):
             "shrink_per_channel": None, "base_params": {k: float(v) for k, v in fit.base_params.items()}}  # fmt: skip
 
 
-def _actuator_vs_process(model, fit, cases, V, k, min_shrink):
+def _actuator_vs_process(model, fit, cases, V, k, min_shrink, segment):
     """Figure 1: the base model driven by measured actuator outputs vs by (affinely mapped) requests."""
     from reachconf.io import TestCase
 
@@ -169,7 +189,7 @@ def _actuator_vs_process(model, fit, cases, V, k, min_shrink):
     have = [u for u in model.input_names if all(req[u] in d.case.signals for d in cases)]
     if not have:
         return None
-    measured = _decimated(model, fit, cases, k)
+    measured = _decimated(model, fit, cases, k, segment)
     requested = []
     maps = {}
     for u in have:
@@ -184,7 +204,7 @@ def _actuator_vs_process(model, fit, cases, V, k, min_shrink):
             j = model.input_names.index(u)
             U[:, j] = np.polyval(maps[u], d.case.signal(req[u]))
         c = TestCase(d.name, d.group, d.t, U, d.Y, model.input_names, model.output_names)
-        requested.append(c.decimate(k) if k > 1 else c)
+        requested += _pieces(c.decimate(k) if k > 1 else c, segment)
     bm = _box(fit.model, measured, V, None)
     br = _box(fit.model, requested, V, None)
     if bm is None or br is None:
@@ -303,7 +323,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.3, fit_params=True,
     test_base = _decimated(model, base, test, k)
     train_base = _decimated(model, base, train, k)
     where = {"location": locate_gap(base.model, TestSuite(train_base + test_base), V=V).to_dict()}
-    avp = _actuator_vs_process(model, base, test, V, k, options.min_shrink)
+    avp = _actuator_vs_process(model, base, test, V, k, options.min_shrink, options.box_segment)
     if avp is not None:
         where["actuator_vs_process"] = avp
     bar.update(1)
@@ -313,7 +333,8 @@ def diagnose(model, suite, effects="all", holdout: float = 0.3, fit_params=True,
 
     per_step = [trace_disturbances(base.model, c, V=V).W_trace for c in test_base]
     eps = 1e-9 + 0.05 * np.ptp(np.vstack(per_step), axis=0)
-    base_box = _box(base.model, test_base, V, None)
+    test_segments = _decimated(model, base, test, k, options.box_segment)
+    base_box = _box(base.model, test_segments, V, None)
     if base_box is None:
         raise ConformanceError("diagnose: no minimal disturbance box found for the refitted base model")
     channels = list(model.disturbance_names)
@@ -333,12 +354,20 @@ def diagnose(model, suite, effects="all", holdout: float = 0.3, fit_params=True,
     for i, (f, cost) in enumerate(fits):
         ent = _entry(f, cost, base_cost)
         if i < options.top and not interrupted:
-            box = _box(f.model, _decimated(model, f, test, k), V, None)
+            box = _box(f.model, _decimated(model, f, test, k, options.box_segment), V, None)
             if box is not None:
                 ent["shrink_volume"], ent["shrink_per_channel"] = _shrink(base_box, box, eps, channels)
                 ent["box"] = {ch: [float(a), float(b)] for ch, a, b in zip(channels, box[0], box[1])}
         entries.append((ent, f))
-    ranked = entries  # best held-out multi-step prediction first
+    # best held-out multi-step prediction first; candidates within ``tie`` of the best prediction cost are
+    # ordered by the shrink of the minimal box (lag and dead time predict alike at low frequencies)
+    ranked = list(entries)
+    if ranked and ranked[0][0]["shrink_volume"] is not None:
+        best_cost = ranked[0][0]["prediction_cost"]
+        tied = [ef for ef in ranked if ef[0]["shrink_volume"] is not None
+                and ef[0]["prediction_cost"] <= (1 + options.tie) * best_cost]  # fmt: skip
+        tied.sort(key=lambda ef: -ef[0]["shrink_volume"])
+        ranked = tied + [ef for ef in ranked if not any(ef is t for t in tied)]
     bar.update(1)
 
     best = ranked[0][0] if ranked else None
@@ -352,7 +381,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.3, fit_params=True,
                 continue
             parts = ranked[0][1].candidate.parts + f.candidate.parts
             cf = fit_candidate(model, Candidate(parts), train, sigma, fit_names, options, cache)
-            box = _box(cf.model, _decimated(model, cf, test, k), V, None)
+            box = _box(cf.model, _decimated(model, cf, test, k, options.box_segment), V, None)
             if box is None:
                 continue
             sv, per = _shrink(base_box, box, eps, channels)
@@ -377,14 +406,14 @@ def diagnose(model, suite, effects="all", holdout: float = 0.3, fit_params=True,
 
     # how far it shrinks: W and V (W = 0) before/after on the held-out cases
     before_after = {}
-    after_box = _box(best_fit.model, _decimated(model, best_fit, test, k), V, None) if best_fit is not base else base_box
+    after_box = _box(best_fit.model, _decimated(model, best_fit, test, k, options.box_segment), V, None) if best_fit is not base else base_box
     if after_box is not None:
         before_after["W"] = {ch: {"before": [float(base_box[0][i]), float(base_box[1][i])],
                                   "after": [float(after_box[0][i]), float(after_box[1][i])],
                                   "shrink": float((_size(base_box)[i] + eps[i]) / (_size(after_box)[i] + eps[i]))}
                              for i, ch in enumerate(channels)}  # fmt: skip
-    vb = _vbox(base.model, test_base)
-    va = _vbox(best_fit.model, _decimated(model, best_fit, test, k)) if best_fit is not base else vb
+    vb = _vbox(base.model, test_segments)
+    va = _vbox(best_fit.model, _decimated(model, best_fit, test, k, options.box_segment)) if best_fit is not base else vb
     if vb is not None and va is not None:
         before_after["V"] = {ch: {"before": [float(vb[0][i]), float(vb[1][i])], "after": [float(va[0][i]), float(va[1][i])],
                                   "shrink": float((_size(vb)[i] + 1e-12) / (_size(va)[i] + 1e-12))}
@@ -424,9 +453,11 @@ def _verdict(ranked, named, combination, interrupted) -> str:
     params = ", ".join(f"{k} = {v:.4g}" for k, v in best["params"].items())
     text = (f"{best['effect']} on {best['target']} ({params}) explains the gap: the minimal W volume shrinks "
             f"{best['shrink_volume']:.2f}x and the held-out prediction cost by {100 * best['prediction_gain']:.0f} %")
-    if runner is not None and runner["shrink_volume"]:
-        text += (f"; margin over the runner-up {runner['effect']} on {runner['target']}: "
-                 f"{best['shrink_volume'] / runner['shrink_volume']:.2f}x in volume")
+    if runner is not None:
+        text += (f"; margin over the runner-up {runner['effect']} on {runner['target']}: held-out prediction cost "
+                 f"{runner['prediction_cost'] / best['prediction_cost']:.2f}x lower")
+        if runner["shrink_volume"]:
+            text += f", W volume {best['shrink_volume'] / runner['shrink_volume']:.2f}x smaller"
     if combination:
         text += f"; together with a second effect ({combination['label']}) {combination['shrink_volume']:.2f}x"
     return pre + text

@@ -46,10 +46,16 @@ class DiagnoseOptions:
         Number of candidates (best by held-out prediction) scored by the minimal box.
     box_rate : float, default 20.0
         Sample rate (Hz) the held-out cases are decimated to for the minimal-box scores.
+    box_segment : float, default 2.0
+        The held-out cases are cut into segments of this length (s) for the
+        minimal-box scores (the box is the hull of the segments' boxes).
     min_shrink : float, default 1.5
         Smallest volume shrink of the minimal box for naming an effect.
-    min_improvement : float, default 0.2
+    min_improvement : float, default 0.3
         ... and smallest relative reduction of the held-out prediction cost.
+    tie : float, default 0.1
+        Candidates whose held-out prediction cost is within this fraction of
+        the best are ranked by the shrink of the minimal box instead.
     combine : bool, default True
         Also try the best effect together with each runner-up (e.g. a scale and an offset).
     tube_horizon : float, default 2.0
@@ -64,13 +70,15 @@ class DiagnoseOptions:
     param_bounds: float = 0.5
     top: int = 6
     box_rate: float = 20.0
+    box_segment: float = 2.0
     min_shrink: float = 1.0
-    min_improvement: float = 0.2
+    min_improvement: float = 0.3
+    tie: float = 0.1
     combine: bool = True
     tube_horizon: float = 2.0
 
     def __post_init__(self):
-        for name in ("window", "stride", "prior", "param_bounds", "box_rate"):
+        for name in ("window", "stride", "prior", "param_bounds", "box_rate", "box_segment"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise OptionsError(f"DiagnoseOptions.{name} must be a positive number, got {v!r}")
@@ -80,6 +88,8 @@ class DiagnoseOptions:
                 raise OptionsError(f"DiagnoseOptions.{name} must be a positive integer, got {v!r}")
         if self.smooth < 3 or self.smooth % 2 == 0:
             raise OptionsError(f"DiagnoseOptions.smooth must be an odd number >= 3, got {self.smooth}")
+        if not (isinstance(self.tie, (int, float)) and 0 <= self.tie < 1):
+            raise OptionsError(f"DiagnoseOptions.tie must be in [0, 1), got {self.tie!r}")
         if not self.min_shrink >= 1.0 or not 0 <= self.min_improvement < 1:
             raise OptionsError("DiagnoseOptions.min_shrink must be >= 1 and min_improvement in [0, 1)")
 
