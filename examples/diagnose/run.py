@@ -96,6 +96,8 @@ def table(rows) -> str:
         ps = ", ".join(f"{k}={v:.4g}±{b['params_std'][k]:.1g}" for k, v in b["params"].items())
         if r["combination"]:
             ps += "; with " + ", ".join(f"{k}={v:.4g}" for k, v in r["combination"]["params"].items())
+        if r["named"] == "none":
+            ps = f"(best, not named: {b['effect']}({b['target']}) {ps})"
         sv = "n/a" if b["shrink_volume"] is None else f"{b['shrink_volume']:.2f}"
         ru = r["runner_up"]
         lines.append(f"| {r['withheld']} | {truth} | {r['named']} | {ps} | {sv} | {100 * b['prediction_gain']:.0f} % | "
