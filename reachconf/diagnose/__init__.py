@@ -203,7 +203,8 @@ def _actuator_vs_process(model, fit, cases, V, k, min_shrink, segment):
         for u in have:
             j = model.input_names.index(u)
             U[:, j] = np.polyval(maps[u], d.case.signal(req[u]))
-        c = TestCase(d.name, d.group, d.t, U, d.Y, model.input_names, model.output_names)
+        # copies: TestCase freezes the arrays it is given, and d's arrays feed the compiled kernels later
+        c = TestCase(d.name, d.group, d.t.copy(), U, d.Y.copy(), model.input_names, model.output_names)
         requested += _pieces(c.decimate(k) if k > 1 else c, segment)
     bm = _box(fit.model, measured, V, None)
     br = _box(fit.model, requested, V, None)

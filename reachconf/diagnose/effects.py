@@ -102,7 +102,8 @@ class Effect:
                      "param": model.param_names}[self.kind])  # fmt: skip
 
     def apply_signal(self, t, x, theta):
-        return self.signal(np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(x, dtype=float),
+        # writeable contiguous copies: suites loaded from disk hold read-only arrays, compiled filters need mutable ones
+        return self.signal(np.array(t, dtype=float, order="C"), np.array(x, dtype=float, order="C"),
                            tuple(float(v) for v in theta))  # fmt: skip
 
     def apply_model(self, base, target: str, theta=None):
