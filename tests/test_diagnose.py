@@ -195,3 +195,23 @@ def test_diagnose_with_defaults_alone():
     targets = {(e["effect"], e["target"]) for e in rep.ranked_effects}
     assert ("drag", "v") in targets and ("output_offset", "p") in targets and ("dead_time", "u") in targets
     assert len(rep.base["V"]) == 2 and all(lo < 0 < hi for lo, hi in rep.base["V"])
+
+
+def test_locate_gap_names_the_outputs_that_drive_a_channel():
+    """A push on x2 is seen in the x2 measurements: ignoring them collapses w2's box."""
+    m = rc.Model(name="two_decay", states=("x1", "x2"), inputs=("u",), disturbances=("w1", "w2"),
+                 dynamics=lambda s: [-s.x1 + s.u + s.w1, -2.0 * s.x2 + 0.5 * s.x1 + s.w2])  # fmt: skip
+    cases = []
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        t = np.round(np.arange(0, 4.0 + 1e-9, 0.05), 10)
+        u = np.sin(t + seed)
+        w = rng.normal(scale=0.01, size=(t.size, 2))
+        w[(t >= 1.0) & (t < 2.0), 1] += 1.0
+        X = simulate(m, [0.0, 0.0], t, inputs=u[:, None], disturbances=w, substeps=10)
+        cases.append(TestCase(f"c{seed}", "m", t, u[:, None], X, ("u",), ("x1", "x2")))
+    V = rc.Interval(-0.01 * np.ones(2), 0.01 * np.ones(2))
+    rep = rc.locate_gap(m, TestSuite(cases), V=V)
+    assert max(rep.drivers["w2"], key=rep.drivers["w2"].get) == "x2"
+    assert rep.drivers["w2"]["x2"] > 0.5 and rep.drivers["w1"]["x1"] > 0.5
+    assert "w2: " in rep.summary() and "driven by the errors of x2" in rep.summary()

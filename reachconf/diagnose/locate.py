@@ -5,7 +5,8 @@ From the per-step disturbance traces of trace conformance (section 3.2.1),
 
 * per disturbance channel, its share of the normalised minimal box (each
   channel's width divided by the typical size of its disturbance, the median
-  absolute deviation over the suite);
+  absolute deviation over the suite), and which outputs' errors drive it
+  (rank correlation of ``|w_i|`` with each output's one-step innovation);
 * in time, the segments where a channel leaves its quiet envelope (median
   +- ``envelope`` robust standard deviations over the whole suite), per case
   and per group — segments shared by most cases of a group are reported as
@@ -41,11 +42,12 @@ class GapLocation:
     group_segments: dict
     conditions: dict
     envelope: dict = field(default_factory=dict)
+    drivers: dict = field(default_factory=dict)
 
     def to_dict(self):
         return {"channels": self.channels, "shares": self.shares, "box": self.box, "envelope": self.envelope,
                 "segments": self.segments, "group_segments": self.group_segments,
-                "conditions": self.conditions}  # fmt: skip
+                "conditions": self.conditions, "drivers": self.drivers}  # fmt: skip
 
     def to_json(self, path=None) -> str:
         text = json.dumps(self.to_dict(), indent=2, default=float)
@@ -58,7 +60,8 @@ class GapLocation:
     def summary(self, top: int = 3) -> str:
         lines = ["Share of the normalised disturbance box per channel:"]
         for ch, sh in sorted(self.shares.items(), key=lambda kv: -kv[1]):
-            lines.append(f"  {ch}: {100 * sh:.0f} %")
+            drv = ", ".join(f"{o} (rho {v:.2f})" for o, v in list(self.drivers.get(ch, {}).items())[:2] if v > 0.3)
+            lines.append(f"  {ch}: {100 * sh:.0f} %" + (f", driven by the errors of {drv}" if drv else ""))
         for g, segs in self.group_segments.items():
             for s in segs[:top]:
                 lines.append(f"  {s['channel']}, {s['t0']:.1f}-{s['t1']:.1f} s of {s['share']:.0%} of the {g} runs")
@@ -169,4 +172,48 @@ def locate_gap(model, suite, V=None, envelope: float = 4.0, min_duration: float 
                 if np.isfinite(rho):
                     corr[k] = float(rho)
         conditions[n] = dict(sorted(corr.items(), key=lambda kv: -abs(kv[1])))
-    return GapLocation(names, shares, box, segments, group_segments, conditions, env)
+    drivers = _drivers(model, cases, traces, V)
+    return GapLocation(names, shares, box, segments, group_segments, conditions, env, drivers)
+
+
+def _drivers(model, cases, traces, V):
+    """Which outputs' errors drive each disturbance channel.
+
+    For every sample interval, the *innovation* of each output is the
+    measurement minus the undisturbed one-step prediction from the fitted
+    trace's state (in units of V's radius, or of the output's spread); the
+    share of channel ``i`` driven by output ``j`` is the Spearman rank
+    correlation of ``|w_i|`` with ``|innovation_j|`` (negative values as 0).
+    """
+    from scipy.stats import spearmanr
+
+    from reachconf.conformance.trace import _outputs, case_arrays
+    from reachconf_kernels.integrate import rk4_one_step_each
+
+    comp = model.compiled()
+    pv = model.param_vector
+    absW, innov = [], []
+    for c in cases:
+        t, U, Y = case_arrays(model, c)
+        r = traces[c.name]
+        X = np.ascontiguousarray(r.X[:-1])
+        Xp = rk4_one_step_each(comp.f, X, np.ascontiguousarray(U[:-1]), np.zeros((X.shape[0], model.q)),
+                               np.diff(t), pv, 4)  # fmt: skip
+        innov.append(Y[1:] - _outputs(model, Xp, np.ascontiguousarray(U[1:])))
+        W = r.W_trace
+        absW.append(np.abs(W[: X.shape[0]]))
+    absW, innov = np.vstack(absW), np.vstack(innov)
+    if V is not None:
+        scale = 0.5 * (np.asarray(V.hi, float) - np.asarray(V.lo, float))
+    else:
+        scale = np.std(innov, axis=0)
+    innov = np.abs(innov) / np.where(scale > 0, scale, 1.0)
+    out = {}
+    for i, n in enumerate(model.disturbance_names):
+        d = {}
+        for j, o in enumerate(model.output_names):
+            if np.ptp(absW[:, i]) > 0 and np.ptp(innov[:, j]) > 0:
+                rho = spearmanr(absW[:, i], innov[:, j]).statistic
+                d[o] = float(max(rho, 0.0)) if np.isfinite(rho) else 0.0
+        out[n] = dict(sorted(d.items(), key=lambda kv: -kv[1]))
+    return out

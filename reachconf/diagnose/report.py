@@ -113,7 +113,10 @@ class GapReport:
         if loc:
             lines += ["", "## Where", ""]
             for ch, sh in sorted(loc.get("shares", {}).items(), key=lambda kv: -kv[1]):
-                lines.append(f"- {ch}: {100 * sh:.0f} % of the normalised disturbance box")
+                drv = ", ".join(f"{o} (rho {v:.2f})" for o, v in list(loc.get("drivers", {}).get(ch, {}).items())[:2]
+                                if v > 0.3)  # fmt: skip
+                lines.append(f"- {ch}: {100 * sh:.0f} % of the normalised disturbance box"
+                             + (f", driven by the errors of {drv}" if drv else ""))  # fmt: skip
             for g, segs in loc.get("group_segments", {}).items():
                 for s in segs[:3]:
                     lines.append(f"- {s['channel']}, {s['t0']:.1f}-{s['t1']:.1f} s of {s['share']:.0%} of the {g} runs")
