@@ -215,3 +215,11 @@ def test_locate_gap_names_the_outputs_that_drive_a_channel():
     assert max(rep.drivers["w2"], key=rep.drivers["w2"].get) == "x2"
     assert rep.drivers["w2"]["x2"] > 0.5 and rep.drivers["w1"]["x1"] > 0.5
     assert "w2: " in rep.summary() and "driven by the errors of x2" in rep.summary()
+
+
+def test_reachset_conformant_W_before_and_after():
+    m, suite = _oscillator_suite(lag=0.2, n=4, seed=5)
+    rep = rc.diagnose(m, suite, effects=["actuator_lag"], progress=False, reach=True)
+    row = rep.before_after["W_reachset"]["w"]
+    assert row["shrink"] > 1.0
+    assert rep.before_after["W_reachset_conformant"]["after"] is True

@@ -64,11 +64,11 @@ def judge(report, truth) -> dict:
 
 
 def run_one(job):
-    name, repetitions, nominal, out = job
+    name, repetitions, nominal, out, reach = job
     t0 = time.perf_counter()
     suite, truth = withheld_suite(name, repetitions=repetitions)
     t_gen = time.perf_counter() - t0
-    report = rc.diagnose(bicycle(**nominal), suite, fit_params=FIT, progress=False)
+    report = rc.diagnose(bicycle(**nominal), suite, fit_params=FIT, progress=False, reach=reach)
     folder = Path(out) / name
     folder.mkdir(parents=True, exist_ok=True)
     report.to_json(folder / "report.json")
@@ -82,7 +82,7 @@ def run_one(job):
            "runner_up": {k: report.ranked_effects[1][k] for k in ("effect", "target", "shrink_volume",
                                                                    "prediction_gain")},
            "combination": report.combination, "seconds_generate": t_gen, "seconds_diagnose": report.seconds,
-           "cases": len(list(suite))}  # fmt: skip
+           "cases": len(list(suite)), "before_after": report.before_after}  # fmt: skip
     return row
 
 
@@ -112,6 +112,7 @@ def main(argv=None) -> int:
     ap.add_argument("--repetitions", type=int, default=3)
     ap.add_argument("--only", nargs="*", choices=sorted(WITHHELD), help="only these withheld effects")
     ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--reach", action="store_true", help="also the reachset-conformant W before/after (slower)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -121,7 +122,7 @@ def main(argv=None) -> int:
     names = args.only or list(WITHHELD)
     from reachconf.runner import run_cases
 
-    rows = run_cases(run_one, [(n, args.repetitions, nominal, str(out)) for n in names], workers=args.workers,
+    rows = run_cases(run_one, [(n, args.repetitions, nominal, str(out), args.reach) for n in names], workers=args.workers,
                      desc="withheld suites")  # fmt: skip
     result = {"nominal": nominal, "rows": rows, "correct": sum(r["correct"] for r in rows), "total": len(rows),
               "seconds": time.perf_counter() - t0}  # fmt: skip

@@ -247,8 +247,24 @@ def _tubes(model, fits_boxes, case_of, horizon, V):
     return tubes
 
 
+def _reachset_W(model, segments, V):
+    """Reachset-conformant W of the held-out segments (synthesis steps 1-3 and the merge, one group)."""
+    from reachconf.conformance import SynthesisOptions, synthesize_W
+    from reachconf.errors import ReachconfError
+    from reachconf.io import TestCase, TestSuite
+
+    cases = [TestCase(c.name, "held-out", np.array(c.t), np.array(c.U), np.array(c.Y), c.input_names, c.output_names)
+             for c in segments]  # fmt: skip
+    try:
+        res = synthesize_W(model, TestSuite(cases), V, SynthesisOptions(), progress=False)
+    except ReachconfError as exc:
+        return None, str(exc)
+    box = res.groups["held-out"]
+    return (np.asarray(box.lo, float), np.asarray(box.hi, float)), bool(res.group_conformant["held-out"])
+
+
 def diagnose(model, suite, effects="all", holdout: float = 0.3, fit_params=True, seed: int = 0, V=None,
-             options: DiagnoseOptions | None = None, progress: bool = True) -> GapReport:  # fmt: skip
+             options: DiagnoseOptions | None = None, progress: bool = True, reach: bool = False) -> GapReport:  # fmt: skip
     """Diagnose the sim-to-real gap of ``model`` on ``suite`` (see the module docstring).
 
     Parameters
@@ -269,6 +285,10 @@ def diagnose(model, suite, effects="all", holdout: float = 0.3, fit_params=True,
         Measurement-error set; default 3 noise standard deviations per output,
         estimated from third differences of the data.
     options : DiagnoseOptions
+    reach : bool
+        Also synthesise the reachset-conformant W (steps 1-3 of section 4.3.2,
+        the α-search of eq. 68) of the held-out segments for the base and the
+        best model (``before_after["W_reachset"]``); slower.
 
     Returns
     -------
@@ -419,6 +439,18 @@ def diagnose(model, suite, effects="all", holdout: float = 0.3, fit_params=True,
         before_after["V"] = {ch: {"before": [float(vb[0][i]), float(vb[1][i])], "after": [float(va[0][i]), float(va[1][i])],
                                   "shrink": float((_size(vb)[i] + 1e-12) / (_size(va)[i] + 1e-12))}
                              for i, ch in enumerate(model.output_names)}  # fmt: skip
+    if reach:
+        segs_after = _decimated(model, best_fit, test, k, options.box_segment) if best_fit is not base else None
+        rb, okb = _reachset_W(base.model, test_segments, V)
+        ra, oka = _reachset_W(best_fit.model, segs_after, V) if segs_after is not None else (rb, okb)
+        if rb is not None and ra is not None:
+            before_after["W_reachset"] = {
+                ch: {"before": [float(rb[0][i]), float(rb[1][i])], "after": [float(ra[0][i]), float(ra[1][i])],
+                     "shrink": float((_size(rb)[i] + eps[i]) / (_size(ra)[i] + eps[i]))}
+                for i, ch in enumerate(channels)}  # fmt: skip
+            before_after["W_reachset_conformant"] = {"before": okb, "after": oka}
+        else:
+            before_after["W_reachset_error"] = okb if rb is None else oka
     tubes = []
     if after_box is not None and options.tube_horizon > 0:
         first = test[0]

@@ -105,7 +105,7 @@ class GapReport:
         if self.before_after:
             lines += ["", "## How far it shrinks (minimal trace-conformant boxes, held-out cases)", "",
                       "| set | channel | base | with effect | shrink |", "|---|---|---|---|---|"]  # fmt: skip
-            for setname in ("W", "V"):
+            for setname in ("W", "V", "W_reachset"):
                 for ch, row in self.before_after.get(setname, {}).items():
                     lines.append(f"| {setname} | {ch} | [{row['before'][0]:.4g}, {row['before'][1]:.4g}] | "
                                  f"[{row['after'][0]:.4g}, {row['after'][1]:.4g}] | {row['shrink']:.2f} |")  # fmt: skip
