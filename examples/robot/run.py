@@ -3,29 +3,37 @@
     python examples/robot/run.py --data ../shared/data/pedestrians --out DIR [--starts 12]
 
 The ETH and Hotel tracks are replayed as the pedestrians (they do not react to
-the robot).  The robot (unicycle, v in [0, 1.5] m/s, |w| <= 2 rad/s,
-|a_tra| <= 1.5 m/s², |a_rot| <= 1 rad/s², footprint radius 0.3 m, localisation
-uncertainty 0.05 m) crosses each scene between fixed start and goal points
-along the main pedestrian flow, against it and across it, from many start
-times.  Every 0.1 s a sampling planner in the spirit of the dynamic window
-approach scores the reachable (v, w) pairs by progress to the goal and
-clearance; a candidate is only taken if the safety layer accepts it:
+the robot).  The robot (``layers.py``: unicycle with velocity commands held for
+0.1 s, v in [0, 1.5] m/s, |w| <= 2 rad/s, |a_tra| <= 1.5 m/s², |a_rot| <= 1
+rad/s², footprint radius 0.3 m, localisation uncertainty +-0.05 m / +-0.05 rad)
+crosses each scene along the main pedestrian flow, against it and across it,
+from many start times.  Every 0.1 s a sampling planner in the spirit of the
+dynamic window approach scores the reachable (v, w) pairs by progress to the
+goal; a candidate is only taken if the safety layer accepts it:
 
-(a) online verification: the candidate held for one planning step followed by
-    its fail-safe braking maneuver (full deceleration, straight on) stays clear
+(a) online verification: the candidate held for one period followed by its
+    fail-safe braking maneuver stays clear, over every period until standstill,
     of every pedestrian's reachable set (Table 9's model: acceleration- and
     velocity-constrained sets from the last observed position and backward-
-    difference velocity, +-0.1 m / +-0.1 m/s, enlarged by the pedestrian's
-    0.27 m radius) at every time until standstill;
+    difference velocity, +-0.1 m / +-0.1 m/s, enlarged by the 0.27 m radius),
+    of the growing sets of tracks lost from view in the last MEMORY seconds
+    (occlusions, broken tracks) and of phantom pedestrians that may appear in
+    the entry zones at any time and walk at v_max.  The entry zones are the
+    places where tracks began repeatedly in the *other* time windows of the
+    same sequence (never the run's own pedestrians);
 (b) an ISO 13482-style fixed circular safety field sized for a pedestrian at
-    full speed (2 m/s) during the robot's worst-case stopping time: the robot
-    stops while anybody is inside;
-(c) braking ICS: as (a), but the obstacles may move at full speed in any
-    direction from their current position (no velocity information).
+    full speed (2 m/s) during the robot's stopping time: the robot stops while
+    anybody is inside;
+(c) braking ICS: obstacles may move at full speed in any direction from their
+    current position (no velocity information, no entry zones).
 
-When no candidate is accepted the robot brakes.  A collision while moving is a
-time step at which the robot moves and its footprint overlaps a pedestrian's
-disk.  The replayed pedestrians do not avoid the robot, which biases the result
+Start and goal of each run lie on the scenario's line, moved out of the entry
+zones (ROUTE_CLEARANCE): a robot cannot safely wait in a doorway.  All layers
+use the same routes.  When no candidate is accepted the robot continues the
+last verified fail-safe maneuver.  A collision while moving is a pedestrian
+whose disk overlaps the footprint at a 0.1 s step at which the robot moves
+(counted once per run and pedestrian); each is classified (``collision_list``).
+The replayed pedestrians do not avoid the robot, which biases the result
 against every layer (in reality people make room) and makes collisions of a
 standing robot possible; those are not counted, as in the report.
 """
@@ -33,6 +41,7 @@ standing robot possible; those are not counted, as in the report.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
 import sys
@@ -45,11 +54,32 @@ from reachconf.datasets.biwi import ANNOTATION_DT, read_sequence
 from reachconf.errors import ReachconfError
 from reachconf.io import atomic_write_text
 
-V_MAX, W_MAX, A_TRA, A_ROT = 1.5, 2.0, 1.5, 1.0
-R_ROBOT, LOC_UNC, R_PED = 0.3, 0.05, 0.27
-A_PED, V_PED, P_UNC, V_UNC = 0.6, 2.0, 0.1, 0.1
-DT, HORIZON_LIMIT = 0.1, 40.0
-LAYERS = ("online_verification", "iso_safety_field", "braking_ics")
+
+def _load_layers():
+    name = "robot_layers"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name("layers.py"))
+        sys.modules[name] = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(sys.modules[name])
+    return sys.modules[name]
+
+
+L = _load_layers()
+from robot_layers import (A_PED, A_ROT, A_TRA, DT, LAYERS, P_UNC, R_PED, R_ROBOT, V_MAX, V_PED,  # noqa: E402
+                          V_UNC, W_MAX)  # fmt: skip
+
+HORIZON_LIMIT = 40.0
+#: tracks beginning within this many seconds of a run are not used for its entry zones
+ZONE_MARGIN = 30.0
+#: an entry zone is a place where tracks begin repeatedly: a first position with at least
+#: ZONE_MIN_NEIGHBOURS other first positions within ZONE_DENSITY_RADIUS (one-off starts are not)
+ZONE_MIN_NEIGHBOURS, ZONE_DENSITY_RADIUS = 20, 1.0
+#: tracks lost from view keep their (growing) reachable sets this long (s): occlusions, broken tracks
+MEMORY = 2.0
+#: start and goal are moved along the route until they are this far from the entry zones (m)
+ROUTE_CLEARANCE = 1.5
+#: runs whose route keeps less than this fraction of its length are skipped (reported)
+MIN_ROUTE = 0.25
 
 
 class Scene:
@@ -60,10 +90,16 @@ class Scene:
         t_start = min(tr.t[0] for tr in tracks)
         self.t = np.arange(t_start, t_end + 1e-9, DT)
         self.P = np.full((self.t.size, len(tracks), 2), np.nan)
+        self.starts = np.array([tr.p[0] for tr in tracks])
+        self.pids = [tr.pid for tr in tracks]
+        self.start_t = np.array([tr.t[0] for tr in tracks])
         for j, tr in enumerate(tracks):
             on = (self.t >= tr.t[0]) & (self.t <= tr.t[-1])
             self.P[on, j, 0] = np.interp(self.t[on], tr.t, tr.p[:, 0])
             self.P[on, j, 1] = np.interp(self.t[on], tr.t, tr.p[:, 1])
+        seen = ~np.isnan(self.P[:, :, 0])
+        self.k_first = np.argmax(seen, axis=0)
+        self.k_last = self.t.size - 1 - np.argmax(seen[::-1], axis=0)
         V = np.concatenate([tr.v for tr in tracks])
         Pall = np.concatenate([tr.p for tr in tracks])
         self.center = np.median(Pall, axis=0)
@@ -71,122 +107,118 @@ class Scene:
         _, _, vt = np.linalg.svd(flow - 0 * flow.mean(axis=0), full_matrices=False)
         self.axis = vt[0] / np.linalg.norm(vt[0])
 
-    def observe(self, k):
-        """Positions now and 0.4 s ago (backward-difference velocity), for pedestrians present at both."""
-        back = max(k - int(round(ANNOTATION_DT / DT)), 0)
-        p, q = self.P[k], self.P[back]
-        present = ~np.isnan(p[:, 0])
-        v = np.where(np.isnan(q), np.nan, p - q) / ANNOTATION_DT  # NaN: just appeared, velocity unknown
-        return p[present], v[present], present
+    def first_position(self, j):
+        return self.P[self.k_first[j], j]
+
+    def observe(self, k, memory=0.0):
+        """Pedestrians seen at k: positions, backward-difference velocities over 0.4 s (NaN: seen for
+        less than that) and ages (0).  With ``memory`` > 0, also the tracks lost from view within
+        the last ``memory`` seconds, at their last position and velocity, aged by the time since."""
+        back = int(round(ANNOTATION_DT / DT))
+        kk = np.full(self.P.shape[1], k)
+        if memory > 0:
+            lost = (self.k_last < k) & (self.k_last >= k - int(round(memory / DT)))
+            kk[lost] = self.k_last[lost]
+        idx = np.nonzero(~np.isnan(self.P[kk, np.arange(kk.size), 0]))[0]
+        kk = kk[idx]
+        p, q = self.P[kk, idx], self.P[np.maximum(kk - back, 0), idx]
+        v = np.where(np.isnan(q), np.nan, p - q) / ANNOTATION_DT
+        return p, v, (k - kk) * DT, idx
 
 
-def braking_profile(v, w):
-    """Times and poses (relative) of the fail-safe maneuver: full deceleration, constant curvature."""
-    t_stop = v / A_TRA
-    n = max(1, int(np.ceil(t_stop / DT)))
-    ts = np.linspace(0, t_stop, n + 1)
-    s = v * ts - 0.5 * A_TRA * ts**2
-    return ts, s, t_stop
-
-
-def _box_disk_dist(d, r_box, R):
-    e = np.maximum(np.abs(d) - r_box[..., None], 0.0)
-    return np.sqrt(np.sum(e * e, axis=-1)) - R
-
-
-def safe(layer, robot_pts, times, peds_p, peds_v):
-    """Is the robot's path (points at times) clear of the obstacles' sets? Arrays: (T, 2), (T,), (N, 2)."""
-    if peds_p.shape[0] == 0:
-        return True
-    t = times[:, None]
-    clearance = R_ROBOT + LOC_UNC + R_PED
-    rel = robot_pts[:, None, :] - peds_p[None, :, :]  # (T, N, 2)
-    if layer == "braking_ics":
-        return bool(np.all(np.linalg.norm(rel, axis=-1) > clearance + V_PED * t + P_UNC * np.sqrt(2)))
-    # online verification: outside the acceleration-constrained OR the velocity-constrained set suffices;
-    # a pedestrian who has just appeared has no velocity estimate: only the velocity model applies
-    pred = rel - t[..., None] * np.nan_to_num(peds_v)[None, :, :]
-    d_acc = _box_disk_dist(pred, np.broadcast_to(P_UNC + V_UNC * t, rel.shape[:2]), 0.5 * A_PED * t**2)
-    d_acc = np.where(np.isnan(peds_v[:, 0])[None, :], -np.inf, d_acc)
-    d_vel = _box_disk_dist(rel, np.full(rel.shape[:2], P_UNC), V_PED * t)
-    return bool(np.all(np.maximum(d_acc, d_vel) > clearance))
-
-
-def _cause(scene, k, k1, j):
-    """Why a pedestrian could hit the robot: unseen at planning time, or outside its predicted set."""
-    back = max(k - int(round(ANNOTATION_DT / DT)), 0)
-    p, q, actual = scene.P[k, j], scene.P[back, j], scene.P[k1, j]
-    if np.isnan(p[0]):
-        return "pedestrian not visible when the motion was verified"
-    t = (k1 - k) * DT
-    d_vel = _box_disk_dist((actual - p)[None, None], np.array([[P_UNC]]), V_PED * t)[0, 0]
-    if np.isnan(q[0]):
-        return "pedestrian left its predicted set" if d_vel > 0 else "other"
-    v = (p - q) / ANNOTATION_DT
-    d_acc = _box_disk_dist((actual - p - t * v)[None, None], np.array([[P_UNC + V_UNC * t]]), 0.5 * A_PED * t * t)[0, 0]
-    return "pedestrian left its predicted set" if max(d_acc, d_vel) > 0 else "other"
-
-
-def run_once(scene, k0, start, goal, layer, record=False):
+def run_once(scene, k0, start, goal, layer, zones=None, record=False):
+    """One run from grid index k0; None if the scene ends first.  ``zones``: entry zones for (a)."""
     x, y = start
     th = float(np.arctan2(goal[1] - start[1], goal[0] - start[0]))
     v = w = 0.0
     k_ver = k0
     steps = int(HORIZON_LIMIT / DT)
-    collisions, dist, path = 0, 0.0, []
-    causes = {"pedestrian not visible when the motion was verified": 0, "pedestrian left its predicted set": 0,
-              "other": 0}  # fmt: skip
-    field = R_ROBOT + LOC_UNC + R_PED + V_MAX**2 / (2 * A_TRA) + V_PED * (V_MAX / A_TRA + DT)
+    dist, path, hits, hit_steps = 0.0, [], {}, 0
+    causes = dict.fromkeys(CAUSES, 0)
+    field = L.safety_field_radius()
     for i in range(steps):
         k = k0 + i
-        if k >= scene.t.size:
+        if k + 1 >= scene.t.size:
             return None  # scene ended before the run: not counted
-        peds_p, peds_v, present = scene.observe(k)
+        peds_p, peds_v, age, _ = scene.observe(k, MEMORY if layer == "online_verification" and zones else 0.0)
         if record:
-            path.append((x, y, scene.P[k].copy()))
+            path.append((x, y, th, v, w, k))
         if np.hypot(goal[0] - x, goal[1] - y) < 0.3:
-            return {"at_goal": True, "time_s": i * DT, "distance": dist, "collisions": collisions, "path": path,
-                    "causes": causes}  # fmt: skip
+            return _result(True, i * DT, dist, hits, hit_steps, path, causes)
         # candidate commands in the dynamic window
-        vs = np.clip(v + np.linspace(-A_TRA, A_TRA, 7) * DT, 0.0, V_MAX)
-        ws = np.clip(w + np.linspace(-A_ROT, A_ROT, 7) * DT, -W_MAX, W_MAX)
-        best, best_score = None, -np.inf
-        blocked = layer == "iso_safety_field" and peds_p.shape[0] and np.min(np.hypot(*(peds_p - [x, y]).T)) < field
-        for vc in np.unique(vs):
-            for wc in np.unique(ws):
-                th1 = th + wc * DT
-                x1, y1 = x + vc * np.cos(th1) * DT, y + vc * np.sin(th1) * DT
-                if blocked and vc > 0:
-                    continue
-                if layer in ("online_verification", "braking_ics") and vc > 0:
-                    ts, s, _ = braking_profile(vc, wc)
-                    pts = np.column_stack([x1 + s * np.cos(th1), y1 + s * np.sin(th1)])
-                    times = np.concatenate([[0.0], DT + ts])
-                    pts = np.vstack([[x, y], pts])
-                    if not safe(layer, pts, times, peds_p, peds_v):
-                        continue
-                to_goal = np.hypot(goal[0] - x1, goal[1] - y1)
-                heading = abs(np.angle(np.exp(1j * (np.arctan2(goal[1] - y1, goal[0] - x1) - th1))))
-                score = -to_goal - 0.5 * heading + 0.2 * vc
-                if score > best_score:
-                    best, best_score = (vc, wc), score
-        if best is None:  # nothing accepted: brake straight on (the fail-safe verified at k_ver)
-            best = (max(v - A_TRA * DT, 0.0), 0.0)
+        vs = np.unique(np.clip(v + np.linspace(-A_TRA, A_TRA, 7) * DT, 0.0, V_MAX))
+        ws = np.unique(np.clip(w + np.linspace(-A_ROT, A_ROT, 7) * DT, -W_MAX, W_MAX))
+        cands = np.array([(a, b) for a in vs for b in ws])
+        if layer == "iso_safety_field":
+            blocked = peds_p.shape[0] and np.min(np.hypot(*(peds_p - [x, y]).T)) < field
+            ok = (cands[:, 0] == 0) | (not blocked)
         else:
+            ok = L.safe_candidates(layer, (x, y, th), cands, peds_p, peds_v, zones, age)
+        if ok.any():
+            c = cands[ok]
+            x1, y1, th1 = L.step_pose(x, y, th, c[:, 0], c[:, 1])
+            heading = np.abs(np.angle(np.exp(1j * (np.arctan2(goal[1] - y1, goal[0] - x1) - th1))))
+            score = -np.hypot(goal[0] - x1, goal[1] - y1) - 0.5 * heading + 0.2 * c[:, 0]
+            v, w = c[int(np.argmax(score))]
             k_ver = k
-        v, w = best
-        th += w * DT
-        x, y = x + v * np.cos(th) * DT, y + v * np.sin(th) * DT
+        else:  # nothing accepted: continue the fail-safe maneuver verified at k_ver
+            v, w = L.brake_step(v, w)
+        x, y, th = (float(a) for a in L.step_pose(x, y, th, v, w))
         dist += v * DT
-        if v > 1e-6:
-            k1 = min(k + 1, scene.t.size - 1)
-            pk = scene.P[k1]
-            hit = np.nonzero(np.hypot(pk[:, 0] - x, pk[:, 1] - y) < R_ROBOT + R_PED)[0]
-            for j in hit:
-                collisions += 1
-                causes[_cause(scene, k_ver, k1, j)] += 1
-    return {"at_goal": False, "time_s": HORIZON_LIMIT, "distance": dist, "collisions": collisions, "path": path,
-            "causes": causes}
+        if v > 1e-9:
+            pk = scene.P[k + 1]
+            for j in np.nonzero(np.hypot(pk[:, 0] - x, pk[:, 1] - y) < R_ROBOT + R_PED)[0]:
+                hit_steps += 1
+                if j not in hits:
+                    model = "ics" if layer == "braking_ics" else "table9"
+                    cause = _cause(scene, k_ver, k + 1, j, zones if layer == "online_verification" else None, model)
+                    hits[j] = (int(k + 1), cause)
+                    causes[cause] += 1
+    return _result(False, HORIZON_LIMIT, dist, hits, hit_steps, path, causes)
+
+
+def _result(at_goal, t, dist, hits, hit_steps, path, causes):
+    return {"at_goal": at_goal, "time_s": t, "distance": dist, "collisions": len(hits), "collision_steps": hit_steps,
+            "hits": hits, "path": path, "causes": causes}  # fmt: skip
+
+
+CAUSES = ("pedestrian not visible when the motion was verified", "appeared outside the entry zones",
+          "pedestrian left its predicted set", "other")  # fmt: skip
+
+
+def _cause(scene, k, k1, j, zones, model="table9"):
+    """Why pedestrian j could hit the robot at k1 although the motion was verified at k.
+
+    ``zones`` None: the layer ignores appearances (braking ICS, or online verification without
+    entry zones).  Otherwise a hit inside any set the verification used is a bug ("other")."""
+    actual = scene.P[k1, j][None, None]
+    t = np.array([(k1 - k) * DT])
+    visible = not np.isnan(scene.P[k, j, 0])
+    if zones is None:
+        if not visible:
+            return CAUSES[0]
+        p, v, age, idx = scene.observe(k)
+        i = int(np.nonzero(idx == j)[0][0])
+        inside = L.pedestrian_clearance(actual, t, p[i : i + 1], v[i : i + 1], model)[0, 0, 0] <= 0
+        return "other" if inside else CAUSES[2]
+    p, v, age, idx = scene.observe(k, MEMORY)
+    inside = p.shape[0] and np.any(L.pedestrian_clearance(actual, t, p, v, "table9", age) <= 0)
+    if inside or zones.clearance(actual, t)[0, 0] <= 0:
+        return "other"
+    if visible:
+        return CAUSES[2]
+    return CAUSES[1] if zones.distance(scene.first_position(j)) > 0 else CAUSES[2]
+
+
+def entry_zones(scene, t0, t1, margin=ZONE_MARGIN):
+    """Entry zones for a run over [t0, t1]: first positions of the tracks that begin outside
+    [t0 - margin, t1 + margin] (other time windows of the sequence, never the run's own pedestrians)."""
+    from scipy.spatial import cKDTree
+
+    other = (scene.start_t < t0 - margin) | (scene.start_t > t1 + margin)
+    pts = scene.starts[other]
+    near = np.array([len(n) - 1 for n in cKDTree(pts).query_ball_point(pts, ZONE_DENSITY_RADIUS)])
+    return L.EntryZones(pts[near >= ZONE_MIN_NEIGHBOURS])
 
 
 def scenarios(scene, half_length=6.0):
@@ -197,31 +229,101 @@ def scenarios(scene, half_length=6.0):
             "across_flow": (c - 0.6 * half_length * n, c + 0.6 * half_length * n)}  # fmt: skip
 
 
-def plot_run(scene, res, start, goal, out):
+def _rounded_box(c, b, r, n=72):
+    """Boundary of box(c, b) ⊕ disk(r)."""
+    a = np.linspace(0, 2 * np.pi, n)
+    return np.column_stack([c[0] + np.sign(np.cos(a)) * b + r * np.cos(a), c[1] + np.sign(np.sin(a)) * b + r * np.sin(a)])
+
+
+def plot_run(scene, res, zones, out):
+    """One run of online verification: path, entry zones and, at the moment the robot passes closest
+    to a pedestrian at speed, the reach tube of its fail-safe maneuver (reachconf.reach on
+    diff_drive, footprint added) and the pedestrians' Table 9 sets until the robot stops."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(6, 6))
-    xy = np.array([(p[0], p[1]) for p in res["path"]])
-    ax.plot(xy[:, 0], xy[:, 1], "C0-", lw=2, label="robot")
-    k = len(res["path"]) // 2
-    peds = res["path"][k][2]
-    peds = peds[~np.isnan(peds[:, 0])]
-    for p in peds:
-        for t, col in ((0.8, "C1"), (1.6, "C3")):
-            ax.add_patch(plt.Circle(p, R_PED + P_UNC + V_PED * t, fill=False, color=col, lw=0.5, alpha=0.6))
-        ax.add_patch(plt.Circle(p, R_PED, color="k"))
+    path = res["path"]
+    xy = np.array([p[:2] for p in path])
+    start, goal = res["route"]
+    best, best_d = 1, np.inf
+    for i in range(1, len(path) - 1):
+        p = scene.P[path[i][5]]
+        p = p[~np.isnan(p[:, 0])]
+        if p.size:  # closest approach to a pedestrian at speed (1 m/s or more if there is one)
+            d = np.min(np.hypot(*(p - xy[i]).T)) - 10.0 * min(path[i + 1][3], 1.0)
+            if d < best_d:
+                best, best_d = i, d
+    x, y, th, _, _, k = path[best]
+    v, w = path[best + 1][3], path[best + 1][4]
+    fig, ax = plt.subplots(figsize=(7, 6.5))
+    for z in zones.points:
+        ax.add_patch(plt.Circle(z, zones.radius, color="C1", alpha=0.08, lw=0))
+    ax.plot([], [], "s", color="C1", alpha=0.3, label="entry zones (other time windows)")
+    ax.plot(xy[:, 0], xy[:, 1], "C0-", lw=1.5, label="robot path")
+    tube = L.braking_reach_tube((x, y, th), v, w)
+    t_stop = tube.times[-1]
+    for S in tube.project((0, 1)).time_interval_sets:
+        for Z in getattr(S, "pieces", (S,)):
+            V = Z.polygon()
+            ax.fill(V[:, 0], V[:, 1], color="C0", alpha=0.25, lw=0)
+    end = tube.project((0, 1)).time_point_sets[-1].interval()
+    ax.add_patch(plt.Circle(0.5 * (end.lo + end.hi), R_ROBOT + np.hypot(*(end.hi - end.lo)) / 2, fill=False,
+                            color="C0", lw=1, ls="--", label=f"fail-safe reach set at standstill (+{R_ROBOT} m footprint)"))
+    ax.plot([], [], "s", color="C0", alpha=0.4, label=f"reach tube of the fail-safe maneuver (v={v:.2f} m/s)")
+    p, vel, age, idx = scene.observe(k, MEMORY)
+    for i in range(p.shape[0]):
+        ax.add_patch(plt.Circle(p[i], R_PED, color="k" if age[i] == 0 else "0.6"))
+        tt = t_stop + age[i]
+        B = _rounded_box(p[i], P_UNC, V_PED * tt + R_PED)
+        ax.plot(B[:, 0], B[:, 1], color="C3", lw=0.6, alpha=0.6)
+        if not np.isnan(vel[i, 0]):
+            B = _rounded_box(p[i] + vel[i] * tt, P_UNC + V_UNC * tt, 0.5 * A_PED * tt**2 + R_PED)
+            ax.plot(B[:, 0], B[:, 1], color="C2", lw=1)
+    ax.plot([], [], color="C3", lw=0.6, label="pedestrians: velocity-constrained set until standstill")
+    ax.plot([], [], color="C2", lw=1, label="pedestrians: acceleration-constrained set")
     ax.plot(*start, "g^", ms=10, label="start")
     ax.plot(*goal, "r*", ms=12, label="goal")
-    ax.plot(xy[k, 0], xy[k, 1], "bo", ms=8)
+    ax.plot(x, y, "bo", ms=5)
+    ax.set_xlim(min(start[0], goal[0]) - 4, max(start[0], goal[0]) + 4)
+    ax.set_ylim(min(start[1], goal[1]) - 4, max(start[1], goal[1]) + 4)
     ax.set_aspect("equal")
-    ax.set_title("Robot run; pedestrians at mid-run with 0.8/1.6 s velocity-model sets")
-    ax.legend(loc="upper left", fontsize=8)
+    ax.set_title(f"Online verification, t = {scene.t[k]:.1f} s: sets until the robot could stop ({t_stop:.1f} s)",
+                 fontsize=9)  # fmt: skip
+    ax.legend(loc="lower left", fontsize=6.5, framealpha=0.9)
     fig.tight_layout()
-    fig.savefig(out / "robot_run.png", dpi=110)
+    fig.savefig(out / "robot_run.png", dpi=90)
     plt.close(fig)
+
+
+def clip_route(start, goal, zones, clearance=ROUTE_CLEARANCE):
+    """Move start and goal along the straight route until they are ``clearance`` from the entry
+    zones (a robot cannot safely wait in a doorway); unchanged if the whole route is too close."""
+    start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
+    s = np.linspace(0.0, 1.0, 201)
+    pts = start + s[:, None] * (goal - start)
+    ok = np.nonzero(zones.distance(pts) >= clearance)[0]
+    if ok.size == 0:
+        return start, start
+    return pts[ok[0]], pts[ok[-1]]
+
+
+def _summary(runs, scene, sname):
+    reached = [r for r in runs if r["at_goal"]]
+    return {
+        "runs": len(runs),
+        "at_goal": len(reached),
+        "time_s": float(np.mean([r["time_s"] for r in reached])) if reached else None,
+        "velocity": float(np.mean([r["distance"] / r["time_s"] for r in reached])) if reached else None,
+        "route_m": float(np.mean([np.hypot(*np.subtract(*r["route"])) for r in runs])) if runs else None,
+        "collisions": int(sum(r["collisions"] for r in runs)),
+        "collision_steps": int(sum(r["collision_steps"] for r in runs)),
+        "collision_causes": {c: int(sum(r["causes"][c] for r in runs)) for c in CAUSES},
+        "collision_list": [{"sequence": sname, "start_s": round(float(scene.t[r["k0"]]), 1), "pedestrian": scene.pids[j],
+                            "at_s": round(float(scene.t[k1]), 1), "cause": cause}
+                           for r in runs for j, (k1, cause) in r["hits"].items()],  # fmt: skip
+    }
 
 
 def main(argv=None):
@@ -230,6 +332,8 @@ def main(argv=None):
     ap.add_argument("--out", required=True)
     ap.add_argument("--starts", type=int, default=12, help="start times per sequence and scenario")
     ap.add_argument("--sequences", nargs="+", default=["eth", "hotel"])
+    ap.add_argument("--no-entry-zones", dest="entry_zones", action="store_false",
+                    help="online verification without phantom pedestrians at the entry zones (ablation)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     t0 = time.perf_counter()
@@ -244,25 +348,31 @@ def main(argv=None):
     for sname, scene in scenes.items():
         k_starts = np.linspace(0, scene.t.size - int(HORIZON_LIMIT / DT) - 1, args.starts).astype(int)
         for scen, (start, goal) in scenarios(scene).items():
+            runs, skipped = {layer: [] for layer in LAYERS}, 0
+            for k in k_starts:
+                k = int(k)
+                zones = entry_zones(scene, scene.t[k], scene.t[k] + HORIZON_LIMIT)
+                s, g = clip_route(start, goal, zones)
+                if np.hypot(*(g - s)) < MIN_ROUTE * np.hypot(*np.subtract(goal, start)):
+                    skipped += 1  # the entry zones leave too little of the route: not run
+                    continue
+                for layer in LAYERS:
+                    use = zones if layer == "online_verification" and args.entry_zones else None
+                    if (r := run_once(scene, k, s, g, layer, use)) is not None:
+                        r.update(k0=k, route=(s.tolist(), g.tolist()))
+                        runs[layer].append(r)
             for layer in LAYERS:
-                runs = [r for k in k_starts if (r := run_once(scene, int(k), start, goal, layer)) is not None]
-                key = f"{sname}/{scen}"
-                reached = [r for r in runs if r["at_goal"]]
-                table[layer][key] = {
-                    "runs": len(runs),
-                    "at_goal": len(reached),
-                    "time_s": float(np.mean([r["time_s"] for r in reached])) if reached else None,
-                    "velocity": float(np.mean([r["distance"] / r["time_s"] for r in reached])) if reached else None,
-                    "collisions": int(sum(r["collisions"] for r in runs)),
-                    "collision_causes": {c: int(sum(r["causes"][c] for r in runs)) for c in runs[0]["causes"]}
-                    if runs else {},
-                }
-                if picture is None and layer == "online_verification":
-                    picture = (scene, int(k_starts[len(k_starts) // 2]), start, goal)
-    if picture is not None:
-        scene, k, start, goal = picture
-        res = run_once(scene, k, start, goal, "online_verification", record=True)
-        plot_run(scene, res, start, goal, out)
+                table[layer][f"{sname}/{scen}"] = dict(_summary(runs[layer], scene, sname), skipped=skipped)
+            if picture is None:
+                picture = (scene, runs["online_verification"], args.entry_zones)
+    if picture is not None and picture[1]:
+        scene, runs, k = picture
+        r = max(runs, key=lambda r: r["distance"]) if runs else None
+        k = r["k0"]
+        zones = entry_zones(scene, scene.t[k], scene.t[k] + HORIZON_LIMIT)
+        res = run_once(scene, k, *map(np.asarray, r["route"]), "online_verification", zones, record=True)
+        res["route"] = r["route"]
+        plot_run(scene, res, zones, out)
     result = dict(table, seconds=time.perf_counter() - t0)
     atomic_write_text(out / "robot.json", json.dumps(result, indent=2))
     lines = ["| layer | scenario | runs | at goal | mean time [s] | mean velocity [m/s] | collisions while moving |",
