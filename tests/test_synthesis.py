@@ -178,3 +178,20 @@ def test_bad_options_and_sets_raise_reachconf_errors():
     with pytest.raises(OptionsError):
         rc.pareto_front(m, suite, rc.Interval(-np.ones(m.p), np.ones(m.p)), rc.Interval(-np.ones(m.q), np.ones(m.q)),
                         check="x")  # fmt: skip
+
+
+@pytest.mark.parametrize("needed, alpha_max, expect_ok", [(0.3, 1.0, True), (0.3, 4.0, True), (2.5, 4.0, True),
+                                                          (2.5, 1.0, False), (5.0, 4.0, False)])  # fmt: skip
+def test_alpha_search_brackets_the_smallest_conformant_alpha(needed, alpha_max, expect_ok):
+    from reachconf.conformance.synthesis import alpha_search
+
+    W = rc.Interval(np.array([-1.0, 0.0]), np.array([1.0, 2.0]))  # centre (0, 1), radius (1, 1)
+    alpha, box, ok, trials = alpha_search(lambda B: B.radius[0] >= needed - 1e-12, W, 12, alpha_max)
+    assert ok is expect_ok
+    if expect_ok:
+        assert needed - 1e-12 <= alpha <= needed + max(1.0, needed) * 2.0**-11
+        np.testing.assert_allclose(box.center, W.center)
+        np.testing.assert_allclose(box.radius, alpha * W.radius)
+        assert all(ok_ == (a >= needed - 1e-12) for a, ok_ in trials)
+    else:
+        assert alpha == alpha_max

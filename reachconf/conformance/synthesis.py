@@ -40,6 +40,15 @@ class SynthesisOptions:
     alpha_iterations : int, default 10
         Bisection steps of the α-search (eq. 68); the result is within
         ``2**-alpha_iterations`` of the smallest conformant α.
+    alpha_max : float, default 4.0
+        Largest α tried when α = 1 is not reachset conformant.  Eq. 68
+        searches α in [0, 1] because ``W_opt`` is trace conformant; here it is
+        so on the samples steps 1–2 saw (``step2_decimate``) and from the
+        trace's own initial state, not from the initial set of eq. 67, so α = 1
+        can fail.  Then α is doubled up to ``alpha_max`` and the search bisects
+        between the last failing and the first conformant α.  Every returned
+        box is verified by reachability whatever α is; ``1.0`` gives eq. 68
+        exactly.
     optimize : bool, default True
         Run step 2; if False, step 3 starts from ``W_TC``.
     step2_decimate : int, default 1
@@ -54,6 +63,7 @@ class SynthesisOptions:
     """
 
     alpha_iterations: int = 10
+    alpha_max: float = 4.0
     optimize: bool = True
     step2_decimate: int = 1
     merge: bool = True
@@ -63,6 +73,8 @@ class SynthesisOptions:
     def __post_init__(self):
         if int(self.alpha_iterations) != self.alpha_iterations or self.alpha_iterations < 1:
             raise OptionsError(f"alpha_iterations must be a positive integer, got {self.alpha_iterations!r}")
+        if not (np.isfinite(self.alpha_max) and self.alpha_max >= 1.0):
+            raise OptionsError(f"alpha_max must be a finite number >= 1, got {self.alpha_max!r}")
 
 
 @dataclass
@@ -154,19 +166,27 @@ def _scaled(c, g, alpha) -> Interval:
     return Interval(c - alpha * g, c + alpha * g)
 
 
-def alpha_search(check, W: Interval, iterations: int = 10):
-    """Binary search (eq. 68) for the smallest α in [0, 1] with ``check(c + α g)`` true.
+def alpha_search(check, W: Interval, iterations: int = 10, alpha_max: float = 1.0):
+    """Binary search (eq. 68) for the smallest α with ``check(c + α g)`` true.
 
-    ``check(Interval) -> bool``.  Returns ``(alpha, box, conformant, trials)``;
-    if even α = 1 fails, ``conformant`` is False and α = 1.
+    ``check(Interval) -> bool``; ``c, g`` are the centre and radius of ``W``.
+    α = 1 is tried first; if it fails, α is doubled up to ``alpha_max`` (see
+    :class:`SynthesisOptions`).  The bisection then runs between the largest
+    failing and the smallest conformant α (``[0, 1]`` when α = 1 passes).
+    Returns ``(alpha, box, conformant, trials)``; if no α up to ``alpha_max``
+    passes, ``conformant`` is False and α is the last one tried.
     """
     c, g = W.center, W.radius
     trials = []
-    ok = check(W)
-    trials.append((1.0, bool(ok)))
-    if not ok:
-        return 1.0, W, False, trials
     lo, hi = 0.0, 1.0
+    while True:
+        ok = check(_scaled(c, g, hi))
+        trials.append((hi, bool(ok)))
+        if ok:
+            break
+        if hi >= alpha_max:
+            return hi, _scaled(c, g, hi), False, trials
+        lo, hi = hi, min(2.0 * hi, alpha_max)
     for _ in range(iterations):
         mid = 0.5 * (lo + hi)
         ok = check(_scaled(c, g, mid))
@@ -203,23 +223,44 @@ def _synth_case(job) -> CaseSynthesis:
     t0 = time.perf_counter()
     message = ""
     alpha, W_RC, ok, trials = alpha_search(lambda W: _reach_ok(model, case, W, V, options), W_opt,
-                                           options.alpha_iterations)  # fmt: skip
+                                           options.alpha_iterations, options.alpha_max)  # fmt: skip
+    if ok and alpha > 1.0:
+        message = f"W_opt was not reachset conformant; enlarged by alpha = {alpha:.4g}"
     if not ok and options.optimize and W_opt is not W_TC:
         # W_opt is only trace conformant on the samples step 2 saw (and the initial set of eq. 67 differs
         # from the trace's x0): fall back to the search on the hull of step 1's and step 2's boxes
         hull = Interval(np.minimum(W_TC.lo, W_opt.lo), np.maximum(W_TC.hi, W_opt.hi))
         alpha2, W2, ok2, trials2 = alpha_search(lambda W: _reach_ok(model, case, W, V, options), hull,
-                                                options.alpha_iterations)  # fmt: skip
+                                                options.alpha_iterations, options.alpha_max)  # fmt: skip
         trials += [("W_TC hull", True)] + trials2
         if ok2:
             alpha, W_RC, ok = alpha2, W2, True
             message = "W_opt was not reachset conformant; alpha scales the hull of W_TC and W_opt"
     if not ok:
         res = reachset_conformance(model, case, W_opt, V, options=options.reach, keep_tube=False)
-        message = res.message or f"not reachset conformant at α = 1 (first violation at t = {res.first_violation_time})"
+        message = res.message or (f"not reachset conformant up to α = {options.alpha_max:g} (at α = 1 first "
+                                  f"violation at t = {res.first_violation_time})")  # fmt: skip
     steps["step3"] = time.perf_counter() - t0
     return CaseSynthesis(case.name, case.group, W_TC, W_opt, W_RC, alpha, ok, time.perf_counter() - t_start, steps,
                          trace_ok, message, trials)  # fmt: skip
+
+
+def _early_exit_check(model, members, Vbox, options, pool, scheduler, order):
+    """``check(W)`` for the merge: all members conformant, in batches of the pool's size, stopping early."""
+    batch = len(order) if scheduler is not None else max(1, getattr(pool, "_max_workers", 1) if pool else 1)
+
+    def check(W):
+        for i in range(0, len(order), batch):
+            idx = order[i : i + batch]
+            jobs = [(model, members[j][0], W, Vbox, options) for j in idx]
+            res = run_cases(_check_job, jobs, scheduler=scheduler, progress=False, executor=pool)
+            bad = [j for j, ok in zip(idx, res) if not ok]
+            if bad:
+                order[:] = bad + [j for j in order if j not in bad]
+                return False
+        return True
+
+    return check
 
 
 def _check_job(job) -> bool:
@@ -272,11 +313,11 @@ def _synthesize(model, cases, Vbox, options, pool, scheduler, progress, t_all):
             hi = np.max([cs.W_RC.hi for _, cs in members], axis=0)
             hull = Interval(lo, hi)
 
-            def check(W, members=members):
-                jobs = [(model, case, W, Vbox, options) for case, _ in members]
-                return all(run_cases(_check_job, jobs, scheduler=scheduler, progress=False, executor=pool))
+            # the member most likely to fail is checked first and a check stops at the first failure
+            order = sorted(range(len(members)), key=lambda j: (members[j][1].conformant, -members[j][1].alpha))
+            check = _early_exit_check(model, members, Vbox, options, pool, scheduler, order)
 
-            alpha, W, ok, _ = alpha_search(check, hull, options.alpha_iterations)
+            alpha, W, ok, _ = alpha_search(check, hull, options.alpha_iterations, options.alpha_max)
             groups[g], galpha[g], gok[g], gsec[g] = W, alpha, ok, time.perf_counter() - t0
     return SynthesisResult(result_cases, groups, galpha, gok, Vbox, tuple(model.disturbance_names),
                            time.perf_counter() - t_all, gsec)  # fmt: skip
