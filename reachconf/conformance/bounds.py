@@ -75,7 +75,8 @@ def minimize_box(model, case, V, W_start: Interval, start: TraceResult, options:
 
 
 def minimal_trace_bounds(model, suite, V=None, method: str = "perstep", solve_for: str = "W",
-                         options: TraceOptions | None = None, workers=None, scheduler=None) -> Interval:  # fmt: skip
+                         options: TraceOptions | None = None, workers=None, scheduler=None,
+                         executor=None) -> Interval:  # fmt: skip
     """Smallest per-channel box making every trace of the suite conformant (Tables 3/4 analogue).
 
     Parameters
@@ -90,6 +91,8 @@ def minimal_trace_bounds(model, suite, V=None, method: str = "perstep", solve_fo
         the hull over cases.
     solve_for : {"W", "V"}
         "V": the smallest measurement-error box for ``W = {0}``.
+    workers, scheduler, executor : see :func:`reachconf.runner.run_cases`
+        ``executor`` reuses a running pool (e.g. one per script instead of one per call).
 
     Returns
     -------
@@ -114,7 +117,7 @@ def minimal_trace_bounds(model, suite, V=None, method: str = "perstep", solve_fo
     from reachconf.runner import run_cases
 
     jobs = [(model, case, V, method, solve_for, options) for case in cases]
-    boxes = run_cases(_case_box, jobs, workers=workers, scheduler=scheduler, desc="minimal bounds")
+    boxes = run_cases(_case_box, jobs, workers=workers, scheduler=scheduler, desc="minimal bounds", executor=executor)
     lo = np.min([b[0] for b in boxes], axis=0)
     hi = np.max([b[1] for b in boxes], axis=0)
     if solve_for == "W" and method == "optctrl":
@@ -134,7 +137,7 @@ def minimal_trace_bounds(model, suite, V=None, method: str = "perstep", solve_fo
         box = Interval(lo, hi)
         W, Vb = (Interval(np.zeros(model.q), np.zeros(model.q)), box) if solve_for == "V" else (box, V)
         jobs = [(model, case, W, Vb, verify_method, options) for case in cases]
-        verdicts = run_cases(_verify, jobs, workers=workers, scheduler=scheduler, desc="verify bounds")
+        verdicts = run_cases(_verify, jobs, workers=workers, scheduler=scheduler, desc="verify bounds", executor=executor)
         failed = [c.name for c, ok in zip(cases, verdicts) if not ok]
         if not failed:
             return box

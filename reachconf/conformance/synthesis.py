@@ -40,6 +40,8 @@ class SynthesisOptions:
     alpha_iterations : int, default 10
         Bisection steps of the α-search (eq. 68); the result is within
         ``2**-alpha_iterations`` of the smallest conformant α.
+    merge_iterations : int or None, default None
+        Bisection steps of the merge's α-search (``None``: ``alpha_iterations``).
     alpha_max : float, default 4.0
         Largest α tried when α = 1 is not reachset conformant.  Eq. 68
         searches α in [0, 1] because ``W_opt`` is trace conformant; here it is
@@ -63,6 +65,7 @@ class SynthesisOptions:
     """
 
     alpha_iterations: int = 10
+    merge_iterations: int | None = None
     alpha_max: float = 4.0
     optimize: bool = True
     step2_decimate: int = 1
@@ -73,6 +76,9 @@ class SynthesisOptions:
     def __post_init__(self):
         if int(self.alpha_iterations) != self.alpha_iterations or self.alpha_iterations < 1:
             raise OptionsError(f"alpha_iterations must be a positive integer, got {self.alpha_iterations!r}")
+        mi = self.merge_iterations
+        if mi is not None and (int(mi) != mi or mi < 1):
+            raise OptionsError(f"merge_iterations must be a positive integer or None, got {mi!r}")
         if not (np.isfinite(self.alpha_max) and self.alpha_max >= 1.0):
             raise OptionsError(f"alpha_max must be a finite number >= 1, got {self.alpha_max!r}")
 
@@ -269,7 +275,7 @@ def _check_job(job) -> bool:
 
 
 def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, workers=None, scheduler=None,
-                 progress=None) -> SynthesisResult:  # fmt: skip
+                 progress=None, executor=None) -> SynthesisResult:  # fmt: skip
     """Minimal reachset-conformant disturbance boxes per case and per group (section 4.3.2).
 
     Parameters
@@ -279,7 +285,8 @@ def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, worke
     V : Interval
         Measurement-error box.
     options : SynthesisOptions
-    workers, scheduler : see :func:`reachconf.runner.run_cases`
+    workers, scheduler, executor : see :func:`reachconf.runner.run_cases`
+        ``executor`` reuses a running pool (``workers`` is then ignored).
 
     Returns
     -------
@@ -290,6 +297,8 @@ def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, worke
     V_lo, V_hi = _as_box(V, model.p, "V")
     Vbox = Interval(V_lo, V_hi)
     cases = list(suite)
+    if executor is not None:
+        return _synthesize(model, cases, Vbox, options, executor, scheduler, progress, t_all)
     pool = process_pool(min(int(workers), len(cases))) if workers and workers > 1 and scheduler is None else None
     try:
         return _synthesize(model, cases, Vbox, options, pool, scheduler, progress, t_all)
@@ -317,7 +326,8 @@ def _synthesize(model, cases, Vbox, options, pool, scheduler, progress, t_all):
             order = sorted(range(len(members)), key=lambda j: (members[j][1].conformant, -members[j][1].alpha))
             check = _early_exit_check(model, members, Vbox, options, pool, scheduler, order)
 
-            alpha, W, ok, _ = alpha_search(check, hull, options.alpha_iterations, options.alpha_max)
+            iterations = options.merge_iterations or options.alpha_iterations
+            alpha, W, ok, _ = alpha_search(check, hull, iterations, options.alpha_max)
             groups[g], galpha[g], gok[g], gsec[g] = W, alpha, ok, time.perf_counter() - t0
     return SynthesisResult(result_cases, groups, galpha, gok, Vbox, tuple(model.disturbance_names),
                            time.perf_counter() - t_all, gsec)  # fmt: skip

@@ -1,0 +1,88 @@
+"""Vehicle use case end to end (examples/vehicle/run.py): the quick run checked for sane numbers."""
+
+import json
+
+import numpy as np
+import pytest
+
+import reachconf as rc
+from conftest import load_example
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    run = load_example("vehicle")
+    out = tmp_path_factory.mktemp("vehicle")
+    assert run.main(["--quick", "--out", str(out)]) == 0
+    return run, out, json.loads((out / "vehicle.json").read_text())
+
+
+def _width(pairs):
+    a = np.asarray(pairs, dtype=float)
+    return a[:, 1] - a[:, 0]
+
+
+def test_output_contract(quick):
+    run, out, res = quick
+    for key in ("table3", "table4", "table6", "table8", "timings"):
+        assert key in res
+    assert set(res["table6"]) == {"LC_2", "SW_2"}
+    for g, W in res["table6"].items():
+        W = np.asarray(W)
+        assert W.shape == (6, 2) and np.all(W[:, 0] <= W[:, 1]) and np.all(np.isfinite(W))
+        assert (out / f"tube_{g}.png").stat().st_size > 10_000
+    assert set(res["table8"]) == {"open_loop", "closed_loop"}
+    for step in ("identification", "table3", "table4", "table6", "figures", "table8", "after_campaign"):
+        assert res["timings"][step] >= 0
+    assert "Table 6" in (out / "vehicle.md").read_text()
+
+
+def test_identified_parameters_are_near_the_plant(quick):
+    _, _, res = quick
+    p, a = res["bicycle_parameters"], res["actuator_parameters"]["params"]
+    assert 1.0 < p["J_m"] < 2.3 and 0.4 < p["b_L"] < 0.7  # plant: 1.64, 0.55
+    # the plant's actuators (Table 2: scale 0.28 and 0.64, offsets 1.09 deg and 0.32 m/s^2) plus delays
+    assert abs(a["delta_s"] - 0.28) < 0.05 and abs(np.degrees(a["delta_off"]) - 1.09) < 0.3
+    assert abs(a["ax_off"] - 0.32) < 0.1 and 0.5 < a["ax_s"] < 0.9
+
+
+def test_every_table6_box_is_reachset_conformant_and_no_larger_than_W_TC(quick):
+    run, out, res = quick
+    suite = rc.load_suite(out / "campaign_quick")
+    model = rc.models.bicycle_closed_loop_actuated(**res["bicycle_parameters"], **res["actuator_parameters"]["params"])
+    V = run.box(run.V_TABLE6)
+    opts = rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.01, zonotope_order=50, intermediate_order=50,
+                           error_order=5)  # fmt: skip
+    for name, c in res["table6_cases"].items():
+        assert c["conformant"], c["message"]
+        assert np.all(_width(c["W_RC"]) <= _width(c["W_TC"]) + 1e-9), name
+    for case in suite:
+        g = case.group
+        assert res["table6_conformant"][g]
+        W = rc.Interval(*np.asarray(res["table6"][g]).T)
+        cl = case.select(run.REF, model.output_names)
+        # independently re-checked (eq. 43): every measurement in the reach tube plus V
+        assert rc.reachset_conformance(model, cl, W, V, options=opts, keep_tube=False).conformant
+        # a box that excludes the synthesised one's centre on the yaw-acceleration channel must not pass blindly
+        shifted = rc.Interval(W.lo + np.r_[0, 0, 0, 0, 0, 2.0], W.hi + np.r_[0, 0, 0, 0, 0, 2.0])
+        assert not rc.reachset_conformance(model, cl, shifted, V, options=opts, keep_tube=False).conformant
+
+
+def test_actuator_model_shrinks_the_disturbance_bounds(quick):
+    """f_BX driven by the requests needs smaller body disturbances than f_B driven by the same requests."""
+    _, _, res = quick
+    fbx = _width(res["table4"]["all"])[:3]
+    fb = _width(res["table4_fB_requested"]["all"])
+    assert np.prod(fbx / fb) < 1.0
+
+
+@pytest.mark.slow
+def test_full_run(tmp_path):
+    """The whole campaign (40 runs): about 8 min on 2 cores (`pytest -m slow`)."""
+    run = load_example("vehicle")
+    assert run.main(["--out", str(tmp_path), "--workers", "2"]) == 0
+    res = json.loads((tmp_path / "vehicle.json").read_text())
+    assert len(res["table6"]) == 8
+    assert sum(res["table6_conformant"].values()) >= 6
+    for key in ("table3", "table4"):
+        assert not any(isinstance(v, str) for v in res[key].values()), key
