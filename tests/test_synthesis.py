@@ -195,3 +195,10 @@ def test_alpha_search_brackets_the_smallest_conformant_alpha(needed, alpha_max, 
         assert all(ok_ == (a >= needed - 1e-12) for a, ok_ in trials)
     else:
         assert alpha == alpha_max
+
+
+@pytest.mark.parametrize("bad", [{"alpha_max": 0.5}, {"alpha_max": float("inf")}, {"alpha_max": float("nan")},
+                                 {"merge_iterations": 0}, {"merge_iterations": 2.5}])  # fmt: skip
+def test_bad_synthesis_options_raise(bad):
+    with pytest.raises(rc.OptionsError, match=next(iter(bad))):
+        SynthesisOptions(**bad)

@@ -51,8 +51,7 @@ def test_every_table6_box_is_reachset_conformant_and_no_larger_than_W_TC(quick):
     suite = rc.load_suite(out / "campaign_quick")
     model = rc.models.bicycle_closed_loop_actuated(**res["bicycle_parameters"], **res["actuator_parameters"]["params"])
     V = run.box(run.V_TABLE6)
-    opts = rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.01, zonotope_order=50, intermediate_order=50,
-                           error_order=5)  # fmt: skip
+    opts = run.REACH_TABLE6
     for name, c in res["table6_cases"].items():
         assert c["conformant"], c["message"]
         assert np.all(_width(c["W_RC"]) <= _width(c["W_TC"]) + 1e-9), name
