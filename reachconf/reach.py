@@ -295,6 +295,45 @@ def reach(model, X0, times, inputs=None, W=None, options: ReachOptions | None = 
     SetError, ReachError, OptionsError
     """
     from reachconf.tube import ReachTube
+
+    run = _reach_run(model, X0, times, inputs, W, options)
+    return ReachTube.from_branches(model=model, samples=run.samples, step_offsets=run.step_offsets,
+                                   t_start=run.t_start, dts=run.dts, X0=run.X0, branches=run.branches,
+                                   options=run.options, W=run.W, splits=run.splits, seconds=run.seconds)  # fmt: skip
+
+
+class ReachStopped(Exception):
+    """Raised by :func:`_reach_run` when its ``monitor`` asks to stop (not a user error)."""
+
+    def __init__(self, sample: int):
+        super().__init__(f"stopped by the monitor at sample {sample}")
+        self.sample = int(sample)
+
+
+@dataclass
+class _ReachRun:
+    samples: np.ndarray
+    step_offsets: np.ndarray
+    t_start: np.ndarray
+    dts: np.ndarray
+    X0: Zonotope
+    W: Zonotope
+    branches: list
+    splits: int
+    seconds: float
+    options: ReachOptions
+    monitored: bool  # every sample after the first was passed to the monitor (no split happened)
+
+
+def _reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None) -> _ReachRun:
+    """The computation behind :func:`reach`, on raw arrays.
+
+    ``monitor(samples, c, G, ng)``, if given, is called after every computed
+    chunk of the unsplit reach with the indices of the sample times the chunk
+    reached and their time-point sets (``c`` (J, n), ``G`` (J, n, gmax), ``ng``
+    (J,) generators in use); a True return raises :class:`ReachStopped`.  After
+    a split the monitor is no longer called (``monitored`` is then False).
+    """
     from reachconf_kernels import nonlinear as nl
 
     options = options or ReachOptions()
@@ -334,6 +373,7 @@ def reach(model, X0, times, inputs=None, W=None, options: ReachOptions | None = 
             err=np.zeros((S, n)),
         )
 
+    sample_step = np.asarray(step_offsets, dtype=np.int64) - 1  # step ending at each sample (-1: sample 0)
     t0 = time.perf_counter()
     branches = []  # (first_step, stop_step, store)
     pending = [(0, np.array(Z0.center), np.array(Z0.generators), 0)]  # writeable copies
@@ -362,6 +402,12 @@ def reach(model, X0, times, inputs=None, W=None, options: ReachOptions | None = 
                 if status != 0:
                     failed = (status, step, bad_state, bad_term, c_fail, G_fail)
                     break
+                if monitor is not None and splits == 0:
+                    js = np.nonzero((sample_step >= k) & (sample_step < stop))[0]
+                    if js.size:
+                        st = sample_step[js]
+                        if monitor(js, store["tp_c"][st], store["tp_G"][st], store["ng_tp"][st]):
+                            raise ReachStopped(int(js[0]))
                 c, G, k = np.ascontiguousarray(c_fail), np.ascontiguousarray(G_fail), stop
             if failed is None:
                 branches.append((start, S, store))
@@ -381,19 +427,8 @@ def reach(model, X0, times, inputs=None, W=None, options: ReachOptions | None = 
         if bar is not None:
             bar.close()
     seconds = time.perf_counter() - t0
-    return ReachTube.from_branches(
-        model=model,
-        samples=samples,
-        step_offsets=step_offsets,
-        t_start=t_start,
-        dts=dts,
-        X0=Z0,
-        branches=branches,
-        options=options,
-        W=Wz,
-        splits=splits,
-        seconds=seconds,
-    )
+    return _ReachRun(samples, step_offsets, t_start, dts, Z0, Wz, branches, splits, seconds, options,
+                     monitor is not None and splits == 0)  # fmt: skip
 
 
 _DUMMY = None

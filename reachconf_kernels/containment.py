@@ -206,3 +206,65 @@ def contains_batch(c, G, P, tol):
         # the certificates are checked independently of the simplex's own verdict
         out[k] = _certify(G, d, x, y, tol, s)
     return out
+
+
+@njit(cache=True)
+def contains_mapped_sequence(tp_c, tp_G, ng, C, off, v_rad, P, tol, stop_at_outside):
+    """Status of ``P[k]`` in ``C Z_k + off[k] ⊕ box(0, v_rad)`` for every k (eq. 43 along a tube).
+
+    ``Z_k = Z(tp_c[k], tp_G[k, :, :ng[k]])``; 1 inside, 0 outside, -1
+    undecided (decide with the reference LP), -2 not checked (after the first
+    outside point when ``stop_at_outside``).  Per point the same test as
+    :func:`contains_batch` after the interval-hull rejection of
+    ``reachconf.containment.contains_points``.
+    """
+    K = P.shape[0]
+    p, n = C.shape
+    out = np.full(K, -2, dtype=np.int64)
+    nv = 0
+    for i in range(p):
+        if v_rad[i] > 0.0:
+            nv += 1
+    for k in range(K):
+        m0 = ng[k]
+        m = m0 + nv
+        G = np.zeros((p, m))
+        c = off[k].copy()
+        for i in range(p):
+            for r in range(n):
+                a = C[i, r]
+                if a != 0.0:
+                    c[i] += a * tp_c[k, r]
+                    for j in range(m0):
+                        G[i, j] += a * tp_G[k, r, j]
+        j = m0
+        for i in range(p):
+            if v_rad[i] > 0.0:
+                G[i, j] = v_rad[i]
+                j += 1
+        s = 1.0
+        inside_hull = True
+        for i in range(p):
+            acc = 0.0
+            for jj in range(m):
+                acc += abs(G[i, jj])
+            if acc > s:
+                s = acc
+        d = P[k] - c
+        for i in range(p):
+            acc = 0.0
+            for jj in range(m):
+                acc += abs(G[i, jj])
+            if abs(d[i]) > acc * (1.0 + tol) + tol * s:
+                inside_hull = False
+                break
+        if not inside_hull:
+            out[k] = OUTSIDE
+        elif m == 0:
+            out[k] = INSIDE
+        else:
+            x, y, _ = _phase1(G, d, tol, s)
+            out[k] = _certify(G, d, x, y, tol, s)
+        if stop_at_outside and out[k] == OUTSIDE:
+            break
+    return out

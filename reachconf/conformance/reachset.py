@@ -27,8 +27,11 @@ class ReachsetResult:
     first_violation_time : float or None
     max_violation : float
         Largest infinity-norm distance of a measurement from its set
-        ``h(R(t_i)) ⊕ V`` (0 when conformant, ``inf`` when the reach failed).
+        ``h(R(t_i)) ⊕ V`` (0 when conformant, ``inf`` when the reach failed,
+        NaN when not computed: ``violation_distance=False``).
     inside : ndarray of bool (K,)
+        Measurement inside its set (False also for samples not checked after
+        a stop at the first violation).
     tube : ReachTube or None
     seconds : float
     message : str
@@ -91,7 +94,7 @@ def _distance(S: Zonotope, y: np.ndarray) -> float:
 
 
 def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bool = True,
-                         violation_distance: bool = True) -> ReachsetResult:  # fmt: skip
+                         violation_distance: bool = True, stop_at_first_violation: bool = False) -> ReachsetResult:  # fmt: skip
     """Eq. 43: is every measurement ``Y(t_i)`` in ``h(REACH(X0, u, t_i)) ⊕ V``?
 
     Parameters
@@ -110,14 +113,24 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
         Keep the reach tube in the result (set False to save memory).
     violation_distance : bool
         Compute ``max_violation`` (one LP per violating sample).
+    stop_at_first_violation : bool
+        Stop the reachability analysis at the first measurement outside its
+        set (only the verdict and ``first_violation_time`` are wanted: the
+        α-search of eq. 68).  Needs an affine output map and ``V`` as a box;
+        ignored with ``keep_tube`` or ``violation_distance``.
 
     Returns
     -------
     ReachsetResult
         A reach that fails (the set explodes) gives ``conformant=False`` with
         the reason in ``message``: a failed reach never counts as conformant.
+        With an affine output map and a box ``V`` the measurements are checked
+        along the reach by one compiled kernel (the same certified test as
+        :meth:`Zonotope.contains`); otherwise set by set.
     """
-    from reachconf.reach import ReachOptions, reach
+    from reachconf.output_map import affine_output
+    from reachconf.reach import ReachOptions, ReachStopped, _reach_run
+    from reachconf.tube import ReachTube
 
     t0 = time.perf_counter()
     t, U, Y = case_arrays(model, case)
@@ -127,23 +140,86 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
     options = options or ReachOptions()
     V_lo, V_hi = _as_box(V, model.p, "V")
     Vset = Interval(V_lo, V_hi)
-    Wset = W if W is not None else None
+    aff = affine_output(model)
+    stop = bool(stop_at_first_violation and not keep_tube and not violation_distance)
+    checker = _SequenceChecker(aff, U if model.m else np.zeros((t.size, 0)), Y, V_lo, V_hi, stop) if aff else None
+    if checker is not None:
+        checker.check_first(X0)
+    inputs = U if model.m else None
     try:
-        tube = reach(model, X0, t - t[0], inputs=U if model.m else None, W=Wset, options=options)
+        if checker is not None and checker.stopped:
+            raise ReachStopped(0)
+        run = _reach_run(model, X0, t - t[0], inputs=inputs, W=W, options=options,
+                         monitor=checker)  # fmt: skip
     except ReachError as exc:
         return ReachsetResult(name, False, float(t[0] + (exc.time or 0.0)), float("inf"), np.zeros(t.size, bool),
                               None, time.perf_counter() - t0, str(exc))  # fmt: skip
-    cont = tube.contains(t - t[0], Y, V=Vset, output=True, inputs=U if model.m else None)
-    worst = 0.0
+    except ReachStopped:
+        inside = checker.status == 1
+        first = int(np.nonzero(checker.status == 0)[0][0])
+        return ReachsetResult(name, False, float(t[first]), float("nan"), inside, None,
+                              time.perf_counter() - t0, "", {})  # fmt: skip
+    tube = None
+    if keep_tube or checker is None or not run.monitored or violation_distance:
+        tube = ReachTube.from_branches(model=model, samples=run.samples, step_offsets=run.step_offsets,
+                                       t_start=run.t_start, dts=run.dts, X0=run.X0, branches=run.branches,
+                                       options=run.options, W=run.W, splits=run.splits, seconds=run.seconds)  # fmt: skip
+    if checker is not None and run.monitored:
+        inside = checker.status == 1
+    else:
+        inside = tube.contains(t - t[0], Y, V=Vset, output=True, inputs=inputs).inside
+    bad = np.nonzero(~inside)[0]
+    worst = float("nan") if bad.size and not violation_distance else 0.0
     violations = {}
-    if not cont.conformant and violation_distance:
+    if bad.size and violation_distance:
         from reachconf.output_map import output_enclosure
 
-        for k in np.nonzero(~cont.inside)[0]:
+        for k in bad:
             S = output_enclosure(model, tube.at(t[k] - t[0]), U[k] if model.m else None) + Vset.to_zonotope()
             dist = _distance(S, Y[k])
             violations[float(t[k])] = dist
             worst = max(worst, dist)
-    first = None if cont.first_violation is None else float(t[cont.first_violation])
-    return ReachsetResult(name, cont.conformant, first, worst, cont.inside, tube if keep_tube else None,
+    first = float(t[bad[0]]) if bad.size else None
+    return ReachsetResult(name, not bad.size, first, worst, inside, tube if keep_tube else None,
                           time.perf_counter() - t0, "", violations)  # fmt: skip
+
+
+class _SequenceChecker:
+    """Monitor of :func:`reachconf.reach._reach_run`: eq. 43 for each chunk of time-point sets (compiled)."""
+
+    def __init__(self, aff, U, Y, V_lo, V_hi, stop):
+        from reachconf_kernels.zonotope import from_interval
+
+        C, D, e = aff
+        cv, Gv = from_interval(np.ascontiguousarray(V_lo, dtype=float), np.ascontiguousarray(V_hi, dtype=float))
+        self.C = np.ascontiguousarray(C, dtype=float)
+        self.off = np.ascontiguousarray(U @ D.T + e + cv)
+        self.v_rad = np.ascontiguousarray(np.sum(np.abs(Gv), axis=1))
+        self.Y = np.ascontiguousarray(Y, dtype=float)
+        self.stop = stop
+        self.status = np.full(Y.shape[0], -2, dtype=np.int64)
+        self.stopped = False
+
+    def _decide(self, js, c, G, ng):
+        from reachconf.containment import contains_points_lp
+        from reachconf_kernels.containment import contains_mapped_sequence
+
+        st = contains_mapped_sequence(np.ascontiguousarray(c), np.ascontiguousarray(G), np.ascontiguousarray(ng),
+                                      self.C, self.off[js], self.v_rad, self.Y[js], 1e-9, self.stop)  # fmt: skip
+        for i in np.nonzero(st == -1)[0]:  # no certificate: the reference LP
+            Gi = np.hstack([self.C @ G[i][:, : ng[i]], np.diag(self.v_rad)[:, self.v_rad > 0]])
+            ci = self.C @ c[i] + self.off[js[i]]
+            st[i] = int(contains_points_lp(ci, Gi, self.Y[js[i]][None, :], 1e-9)[0])
+        self.status[js] = st
+        if self.stop and np.any(st == 0):
+            self.stopped = True
+        return self.stopped
+
+    def check_first(self, X0):
+        Z = X0.to_zonotope()
+        G = np.asarray(Z.generators, dtype=float)
+        self._decide(np.array([0]), np.asarray(Z.center, dtype=float)[None, :], G[None, :, :],
+                     np.array([G.shape[1]], dtype=np.int64))  # fmt: skip
+
+    def __call__(self, js, c, G, ng):
+        return self._decide(js, c, G, ng)

@@ -204,9 +204,13 @@ def alpha_search(check, W: Interval, iterations: int = 10, alpha_max: float = 1.
     return hi, _scaled(c, g, hi), True, trials
 
 
-def _reach_ok(model, case, W, V, options) -> bool:
+def _reach_check(model, case, W, V, options):
     return reachset_conformance(model, case, W, V, options=options.reach, keep_tube=False,
-                                violation_distance=False).conformant  # fmt: skip
+                                violation_distance=False, stop_at_first_violation=True)  # fmt: skip
+
+
+def _reach_ok(model, case, W, V, options) -> bool:
+    return _reach_check(model, case, W, V, options).conformant
 
 
 def _synth_case(job) -> CaseSynthesis:
@@ -228,22 +232,29 @@ def _synth_case(job) -> CaseSynthesis:
     steps["step2"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     message = ""
-    alpha, W_RC, ok, trials = alpha_search(lambda W: _reach_ok(model, case, W, V, options), W_opt,
-                                           options.alpha_iterations, options.alpha_max)  # fmt: skip
+    at_one = {}  # the check of α = 1 (W_opt itself), for the message if nothing passes
+
+    def check(W, scale_of=None):
+        res = _reach_check(model, case, W, V, options)
+        if scale_of is not None and np.allclose(W.lo, scale_of.lo) and np.allclose(W.hi, scale_of.hi):
+            at_one.setdefault("res", res)
+        return res.conformant
+
+    alpha, W_RC, ok, trials = alpha_search(lambda W: check(W, W_opt), W_opt, options.alpha_iterations,
+                                           options.alpha_max)  # fmt: skip
     if ok and alpha > 1.0:
         message = f"W_opt was not reachset conformant; enlarged by alpha = {alpha:.4g}"
     if not ok and options.optimize and W_opt is not W_TC:
         # W_opt is only trace conformant on the samples step 2 saw (and the initial set of eq. 67 differs
         # from the trace's x0): fall back to the search on the hull of step 1's and step 2's boxes
         hull = Interval(np.minimum(W_TC.lo, W_opt.lo), np.maximum(W_TC.hi, W_opt.hi))
-        alpha2, W2, ok2, trials2 = alpha_search(lambda W: _reach_ok(model, case, W, V, options), hull,
-                                                options.alpha_iterations, options.alpha_max)  # fmt: skip
+        alpha2, W2, ok2, trials2 = alpha_search(check, hull, options.alpha_iterations, options.alpha_max)
         trials += [("W_TC hull", True)] + trials2
         if ok2:
             alpha, W_RC, ok = alpha2, W2, True
             message = "W_opt was not reachset conformant; alpha scales the hull of W_TC and W_opt"
     if not ok:
-        res = reachset_conformance(model, case, W_opt, V, options=options.reach, keep_tube=False)
+        res = at_one["res"]
         message = res.message or (f"not reachset conformant up to α = {options.alpha_max:g} (at α = 1 first "
                                   f"violation at t = {res.first_violation_time})")  # fmt: skip
     steps["step3"] = time.perf_counter() - t0
@@ -251,15 +262,17 @@ def _synth_case(job) -> CaseSynthesis:
                          trace_ok, message, trials)  # fmt: skip
 
 
-def _early_exit_check(model, members, Vbox, options, pool, scheduler, order):
-    """``check(W)`` for the merge: all members conformant, in batches of the pool's size, stopping early."""
-    batch = len(order) if scheduler is not None else max(1, getattr(pool, "_max_workers", 1) if pool else 1)
+def _early_exit_check(model, members, Vbox, options, run_batch, batch, order):
+    """``check(W)`` for the merge: all members conformant, in batches, stopping at the first failure.
+
+    ``order`` (indices into ``members``, likeliest failure first) is updated so
+    that a member that failed is checked first next time.
+    """
 
     def check(W):
         for i in range(0, len(order), batch):
             idx = order[i : i + batch]
-            jobs = [(model, members[j][0], W, Vbox, options) for j in idx]
-            res = run_cases(_check_job, jobs, scheduler=scheduler, progress=False, executor=pool)
+            res = run_batch([(model, members[j][0], W, Vbox, options) for j in idx])
             bad = [j for j, ok in zip(idx, res) if not ok]
             if bad:
                 order[:] = bad + [j for j in order if j not in bad]
@@ -308,26 +321,55 @@ def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, worke
 
 
 def _synthesize(model, cases, Vbox, options, pool, scheduler, progress, t_all):
-    jobs = [(model, case, Vbox, options) for case in cases]
-    per_case = run_cases(_synth_case, jobs, scheduler=scheduler, desc="synthesis", progress=progress, executor=pool)
+    # longest cases first: fewer idle workers at the end
+    longest = sorted(range(len(cases)), key=lambda i: -np.size(cases[i].t))
+    jobs = [(model, cases[i], Vbox, options) for i in longest]
+    done = run_cases(_synth_case, jobs, scheduler=scheduler, desc="synthesis", progress=progress, executor=pool)
+    per_case = [None] * len(cases)
+    for i, cs in zip(longest, done):
+        per_case[i] = cs
     result_cases = {c.name: c for c in per_case}
     groups, galpha, gok, gsec = {}, {}, {}, {}
     if options.merge:
         by_group: dict = {}
         for case, cs in zip(cases, per_case):
             by_group.setdefault(case.group, []).append((case, cs))
-        for g, members in by_group.items():
-            t0 = time.perf_counter()
-            lo = np.min([cs.W_RC.lo for _, cs in members], axis=0)
-            hi = np.max([cs.W_RC.hi for _, cs in members], axis=0)
-            hull = Interval(lo, hi)
+        if pool is not None and scheduler is None and len(by_group) > 1:
+            # every group's α-search in its own thread, all feeding the one process pool
+            from concurrent.futures import ThreadPoolExecutor
 
-            # the member most likely to fail is checked first and a check stops at the first failure
-            order = sorted(range(len(members)), key=lambda j: (members[j][1].conformant, -members[j][1].alpha))
-            check = _early_exit_check(model, members, Vbox, options, pool, scheduler, order)
+            batch = max(1, getattr(pool, "_max_workers", 1))
 
-            iterations = options.merge_iterations or options.alpha_iterations
-            alpha, W, ok, _ = alpha_search(check, hull, iterations, options.alpha_max)
-            groups[g], galpha[g], gok[g], gsec[g] = W, alpha, ok, time.perf_counter() - t0
+            def run_batch(batch_jobs):
+                futures = [pool.submit(_check_job, j) for j in batch_jobs]
+                return [f.result() for f in futures]
+
+            with ThreadPoolExecutor(len(by_group)) as threads:
+                futs = {g: threads.submit(_merge_group, model, m, Vbox, options, run_batch, batch)
+                        for g, m in by_group.items()}  # fmt: skip
+                for g, f in futs.items():
+                    groups[g], galpha[g], gok[g], gsec[g] = f.result()
+        else:
+            batch = 1 if scheduler is None else 10**9
+
+            def run_batch(batch_jobs):
+                return run_cases(_check_job, batch_jobs, scheduler=scheduler, progress=False)
+
+            for g, members in by_group.items():
+                groups[g], galpha[g], gok[g], gsec[g] = _merge_group(model, members, Vbox, options, run_batch, batch)
     return SynthesisResult(result_cases, groups, galpha, gok, Vbox, tuple(model.disturbance_names),
                            time.perf_counter() - t_all, gsec)  # fmt: skip
+
+
+def _merge_group(model, members, Vbox, options, run_batch, batch):
+    """``W_RC,Mnvr`` of one group: the α-search on the hull of its cases' ``W_RC`` over all of them."""
+    t0 = time.perf_counter()
+    lo = np.min([cs.W_RC.lo for _, cs in members], axis=0)
+    hi = np.max([cs.W_RC.hi for _, cs in members], axis=0)
+    hull = Interval(lo, hi)
+    # the member most likely to fail is checked first and a check stops at the first failure
+    order = sorted(range(len(members)), key=lambda j: (members[j][1].conformant, -members[j][1].alpha))
+    check = _early_exit_check(model, members, Vbox, options, run_batch, batch, order)
+    iterations = options.merge_iterations or options.alpha_iterations
+    alpha, W, ok, _ = alpha_search(check, hull, iterations, options.alpha_max)
+    return W, alpha, ok, time.perf_counter() - t0
