@@ -418,6 +418,8 @@ class _IntervalEmitter:
             return self._call("div", *self._call("sin", *a), *c)
         if isinstance(expr, sp.atan):
             return self._call("atan", *self.emit(expr.args[0]))
+        if isinstance(expr, sp.tanh):
+            return self._call("tanh", *self.emit(expr.args[0]))
         if isinstance(expr, sp.Abs):
             return self._call("abs", *self.emit(expr.args[0]))
         if isinstance(expr, (sp.Min, sp.Max)):
@@ -429,7 +431,7 @@ class _IntervalEmitter:
             return acc
         raise ModelError(
             f"the interval code generator does not support {type(expr).__name__} (in {expr}); "
-            f"rewrite the model with +, -, *, /, powers, sqrt, exp, log, sin, cos, tan, atan, Abs, Min, Max"
+            f"rewrite the model with +, -, *, /, powers, sqrt, exp, log, sin, cos, tan, atan, tanh, Abs, Min, Max"
         )
 
 

@@ -8,12 +8,12 @@ operation applied to any reals in the operands::
 
 Rounding: ``+ - * /`` and ``sqrt`` are correctly rounded by IEEE 754, so each
 computed bound is widened by one ulp (``np.nextafter``) outward.  ``exp, log,
-sin, cos, tan, atan`` come from the C library, which is not correctly rounded
-(glibc: below 1 ulp for exp/log/sin/cos/atan, about 2 ulp for tan); their
+sin, cos, tan, atan, tanh`` come from the C library, which is not correctly rounded
+(glibc: below 1 ulp for exp/log/sin/cos/atan, about 2 ulp for tanh, about 2 ulp for tan); their
 bounds are widened by ``TRANSCENDENTAL_ULPS = 4`` ulps plus an absolute
 ``4 * eps`` for sin/cos/tan (whose argument reduction of large arguments
-loses absolute, not relative, accuracy).  Results of sin/cos are clamped to
-``[-1, 1]``.
+loses absolute, not relative, accuracy).  Results of sin/cos/tanh are clamped
+to ``[-1, 1]``.
 
 Elementwise versions on ``(lo, hi)`` arrays are in
 :mod:`reachconf_kernels.interval_arrays`.
@@ -236,6 +236,13 @@ def log(alo, ahi):
 @njit(cache=True)
 def atan(alo, ahi):
     return _down_n(math.atan(alo), TRANSCENDENTAL_ULPS), _up_n(math.atan(ahi), TRANSCENDENTAL_ULPS)
+
+
+@njit(cache=True)
+def tanh(alo, ahi):
+    lo = _down_n(math.tanh(alo), TRANSCENDENTAL_ULPS)
+    hi = _up_n(math.tanh(ahi), TRANSCENDENTAL_ULPS)
+    return (lo if lo > -1.0 else -1.0), (hi if hi < 1.0 else 1.0)
 
 
 @njit(cache=True)

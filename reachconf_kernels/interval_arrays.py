@@ -14,7 +14,7 @@ from numba import njit
 
 from reachconf_kernels import interval as iv
 
-__all__ = ["add", "sub", "mul", "div", "min", "max", "neg", "sqr", "sqrt", "exp", "log", "sin", "cos", "tan", "atan", "abs", "pow"]
+__all__ = ["add", "sub", "mul", "div", "min", "max", "neg", "sqr", "sqrt", "exp", "log", "sin", "cos", "tan", "atan", "tanh", "abs", "pow"]
 
 
 @njit(cache=True)
@@ -135,6 +135,15 @@ def atan(alo, ahi):
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
         lo[i], hi[i] = iv.atan(alo[i], ahi[i])
+    return lo, hi
+
+
+@njit(cache=True)
+def tanh(alo, ahi):
+    lo = np.empty_like(alo)
+    hi = np.empty_like(alo)
+    for i in range(alo.shape[0]):
+        lo[i], hi[i] = iv.tanh(alo[i], ahi[i])
     return lo, hi
 
 @njit(cache=True)

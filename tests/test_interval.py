@@ -101,11 +101,14 @@ def test_sqr_pow_contain_exact(a1, a2, k):
 
 @settings(max_examples=300, deadline=None)
 @given(anyfloat, anyfloat)
-def test_sqrt_exp_log_atan_abs_contain_exact(a1, a2):
+def test_sqrt_exp_log_atan_tanh_abs_contain_exact(a1, a2):
     lo_a, hi_a = interval_from(a1, a2)
     pts = points(lo_a, hi_a)
     lo, hi = iv.atan(lo_a, hi_a)
     assert all(inside(lo, hi, mpmath.atan(mpmath.mpf(x))) for x in pts)
+    lo, hi = iv.tanh(lo_a, hi_a)
+    assert -1.0 <= lo <= hi <= 1.0
+    assert all(inside(lo, hi, mpmath.tanh(mpmath.mpf(x))) for x in pts)
     lo, hi = iv.abs(lo_a, hi_a)
     assert all(inside(lo, hi, abs(mpmath.mpf(x))) for x in pts)
     if hi_a < 700:
@@ -225,7 +228,7 @@ def test_array_versions_match_the_scalar_kernel_and_contain_exact():
         for i in range(0, 200, 17):
             assert (lo[i], hi[i]) == getattr(iv, name)(a[0, i], a[1, i], b[0, i], b[1, i])
     for name, x in (("neg", a), ("sqr", a), ("sqrt", pos), ("exp", a), ("log", pos), ("sin", a), ("cos", a),
-                    ("atan", a), ("abs", a)):  # fmt: skip
+                    ("atan", a), ("tanh", a), ("abs", a)):  # fmt: skip
         lo, hi = getattr(ia, name)(x[0], x[1])
         for i in range(0, 200, 17):
             assert (lo[i], hi[i]) == getattr(iv, name)(x[0, i], x[1, i])
