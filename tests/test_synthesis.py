@@ -198,7 +198,29 @@ def test_alpha_search_brackets_the_smallest_conformant_alpha(needed, alpha_max, 
 
 
 @pytest.mark.parametrize("bad", [{"alpha_max": 0.5}, {"alpha_max": float("inf")}, {"alpha_max": float("nan")},
-                                 {"merge_iterations": 0}, {"merge_iterations": 2.5}])  # fmt: skip
+                                 {"merge_iterations": 0}, {"merge_iterations": 2.5}, {"reach": "fast"},
+                                 {"reach_fallback": {"tensor_order": 3}}])  # fmt: skip
 def test_bad_synthesis_options_raise(bad):
     with pytest.raises(rc.OptionsError, match=next(iter(bad))):
         SynthesisOptions(**bad)
+
+
+def test_reach_fallback_only_when_the_reach_itself_fails():
+    """A set explosion under ``reach`` is retried with ``reach_fallback``; a missed measurement is not."""
+    from reachconf.conformance import synthesis as syn
+
+    m = rc.Model(name="blowup", states=("x",), disturbances=("w",), dynamics=lambda s: [s.x**2 + s.w])
+    t = np.linspace(0, 1.5, 16)
+    x = 1.0 / (1.0 / 0.5 - t)  # x' = x^2 from x(0) = 0.5, w = 0
+    V = rc.Interval([-0.01], [0.01])
+    case = TestCase("c", "g", t, np.zeros((t.size, 0)), x[:, None], (), ("x",))
+    W = rc.Interval([-0.01], [0.01])
+    coarse = rc.ReachOptions(time_step=0.1, max_splits=0, zonotope_order=1, tensor_order=2, max_error=1e-4)
+    fine = rc.ReachOptions(time_step=0.01, tensor_order=3)
+    alone = syn._reach_check(m, case, W, V, SynthesisOptions(reach=coarse))
+    assert not alone.conformant and alone.message  # the coarse reach fails
+    both = syn._reach_check(m, case, W, V, SynthesisOptions(reach=coarse, reach_fallback=fine))
+    assert both.conformant and not both.message
+    # a box that misses the measurements is not retried: same verdict, and the fine options never help it
+    shifted = rc.Interval([0.3], [0.32])
+    assert not syn._reach_check(m, case, shifted, V, SynthesisOptions(reach=fine, reach_fallback=coarse)).conformant

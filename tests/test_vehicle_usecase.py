@@ -60,8 +60,10 @@ def test_every_table6_box_is_reachset_conformant_and_no_larger_than_W_TC(quick):
         assert res["table6_conformant"][g]
         W = rc.Interval(*np.asarray(res["table6"][g]).T)
         cl = case.select(run.REF, model.output_names)
-        # independently re-checked (eq. 43): every measurement in the reach tube plus V
-        assert rc.reachset_conformance(model, cl, W, V, options=opts, keep_tube=False).conformant
+        # independently re-checked (eq. 43): every measurement in the reach tube plus V (the synthesis verified
+        # each box with tensor order 2 or, where that reach exploded, 3)
+        assert any(rc.reachset_conformance(model, cl, W, V, options=o, keep_tube=False).conformant
+                   for o in (run.REACH_TABLE6_FAST, opts))  # fmt: skip
         # a box that excludes the synthesised one's centre on the yaw-acceleration channel must not pass blindly
         shifted = rc.Interval(W.lo + np.r_[0, 0, 0, 0, 0, 2.0], W.hi + np.r_[0, 0, 0, 0, 0, 2.0])
         assert not rc.reachset_conformance(model, cl, shifted, V, options=opts, keep_tube=False).conformant
@@ -77,11 +79,30 @@ def test_actuator_model_shrinks_the_disturbance_bounds(quick):
 
 @pytest.mark.slow
 def test_full_run(tmp_path):
-    """The whole campaign (40 runs): about 8 min on 2 cores (`pytest -m slow`)."""
+    """The whole campaign (40 runs): about 6 min on 2 cores with its generation (`pytest -m slow`)."""
     run = load_example("vehicle")
     assert run.main(["--out", str(tmp_path), "--workers", "2"]) == 0
     res = json.loads((tmp_path / "vehicle.json").read_text())
     assert len(res["table6"]) == 8
-    assert sum(res["table6_conformant"].values()) >= 6
+    assert sum(res["table6_conformant"].values()) >= 7  # all but DLC_4 (see README)
     for key in ("table3", "table4"):
         assert not any(isinstance(v, str) for v in res[key].values()), key
+
+
+def test_ctrl_c_keeps_the_finished_tables(quick, monkeypatch, tmp_path):
+    """Interrupted during Table 6, the run writes Tables 3 and 4 (done) and says it was interrupted."""
+    import shutil
+
+    run, out, _ = quick
+    for folder in out.glob("campaign*"):  # reuse the quick campaigns
+        shutil.copytree(folder, tmp_path / folder.name)
+
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(run, "synthesize_W", interrupt)
+    assert run.main(["--quick", "--out", str(tmp_path)]) == 130
+    res = json.loads((tmp_path / "vehicle.json").read_text())
+    assert res["interrupted"] is True
+    assert "table3" in res and "table4" in res and "table6" not in res and "table8" not in res
+    assert res["timings"]["table4"] >= 0

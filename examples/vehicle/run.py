@@ -23,6 +23,7 @@ each, the first 4 s (the test suite's run).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import sys
@@ -57,6 +58,9 @@ V_TABLE8 = np.array([0.01, 0.01, 0.1 * DEG, 0.01, 0.01, 0.1 * DEG])
 #: Table 6's reachability; zonotope order 50: at order 20 the reduction let the 4 m/s^2 tubes leave v_x > 0
 REACH_TABLE6 = rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.01, zonotope_order=50,
                                intermediate_order=50, error_order=5)  # fmt: skip
+#: the α-searches try tensor order 2 first (half the time per reach) and order 3 where that reach explodes
+#: (the merged SL_4 boxes); each box is verified by one of the two, both sound
+REACH_TABLE6_FAST = dataclasses.replace(REACH_TABLE6, tensor_order=2)
 #: quick run: two maneuvers, one repetition, the first seconds
 QUICK = {"maneuvers": ("LC", "SW"), "accelerations": (2.0,), "horizon": 4.0}
 REF = ("X_ref", "Y_ref", "psi_ref", "v_ref", "kappa_ref")
@@ -227,8 +231,17 @@ def main(argv=None):
     print(f"campaign: {len(suite)} cases, groups {list(suite.groups())} ({timings['campaign']:.1f} s)", flush=True)
     t_after = time.perf_counter()
     pool = process_pool(args.workers) if args.workers and args.workers > 1 else None
+    result = {}
     try:
-        result = _run(args, out, suite, plain, pool, timings)
+        _run(args, out, suite, plain, pool, timings, result)
+    except KeyboardInterrupt:
+        # Ctrl-C: keep what is finished (the steps' results so far) and say so
+        timings["after_campaign"] = time.perf_counter() - t_after
+        result.update(timings=timings, interrupted=True)
+        atomic_write_text(out / "vehicle.json", json.dumps(result, indent=2, default=float))
+        done = [k for k in ("table3", "table4", "table6", "table8") if k in result]
+        print(f"interrupted: wrote the finished parts ({', '.join(done) or 'none'}) to {out / 'vehicle.json'}")
+        return 130
     finally:
         if pool is not None:
             pool.shutdown(cancel_futures=True)
@@ -241,30 +254,34 @@ def main(argv=None):
     return 0
 
 
-def _run(args, out, suite, plain, pool, timings):
+def _run(args, out, suite, plain, pool, timings, result):
+    """Steps 1-5; each step's results go into ``result`` as soon as they exist (kept on Ctrl-C)."""
     # 1. identification of the nominal bicycle parameters
     t0 = time.perf_counter()
     params, ident = fit_bicycle(suite)
     fB = bicycle(**params)
     act = fit_actuators(suite)
     timings["identification"] = time.perf_counter() - t0
+    result.update(bicycle_parameters=params, identification=ident, actuator_parameters=act, cases=len(suite),
+                  V={"table3": V_TABLE3.tolist(), "table4": V_TABLE4.tolist(), "table5": V_TABLE5.tolist(),
+                     "table6": V_TABLE6.tolist(), "table8": V_TABLE8.tolist()})  # fmt: skip
     print(f"1. bicycle {params}, actuators {act['params']} ({timings['identification']:.1f} s)", flush=True)
 
     # 2. Tables 3 and 4 (and f_B with the requests, to show what the actuator model buys)
     t0 = time.perf_counter()
-    table3 = trace_table(fB, suite, box(V_TABLE3), (("ax", "delta"), fB.output_names), pool)
+    result["table3"] = trace_table(fB, suite, box(V_TABLE3), (("ax", "delta"), fB.output_names), pool)
     timings["table3"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     fBX = bicycle_actuated(**params, **act["params"])
-    table4 = trace_table(fBX, suite, box(V_TABLE4), (("ax_req", "delta_req"), fBX.output_names), pool)
+    result["table4"] = trace_table(fBX, suite, box(V_TABLE4), (("ax_req", "delta_req"), fBX.output_names), pool)
     timings["table4"] = time.perf_counter() - t0
-    table4_req = None
+    result["table4_fB_requested"] = None
     if args.quick or args.compare_requested:
         t0 = time.perf_counter()
         from reachconf.campaign.plant import PlantEffects
 
         req = requested_inputs(suite, PlantEffects().delta_s_nominal)
-        table4_req = trace_table(fB, req, box(V_TABLE3), (("ax", "delta"), fB.output_names), pool)
+        result["table4_fB_requested"] = trace_table(fB, req, box(V_TABLE3), (("ax", "delta"), fB.output_names), pool)
         timings["table4_fB_requested"] = time.perf_counter() - t0
     print(f"2. Table 3 ({timings['table3']:.1f} s), Table 4 ({timings['table4']:.1f} s)", flush=True)
 
@@ -275,15 +292,23 @@ def _run(args, out, suite, plain, pool, timings):
     ropts = REACH_TABLE6
     # α to 2^-8 per run and 2^-6 for the merged box; coarser runs' boxes make a larger hull, which for SL_4
     # made the tube leave v_x > 0 at every α >= 1 (the set explosion is not monotone in W)
-    sopts = SynthesisOptions(alpha_iterations=8, merge_iterations=6, alpha_max=4.0, step2_decimate=4, reach=ropts)
+    sopts = SynthesisOptions(alpha_iterations=8, merge_iterations=6, alpha_max=4.0, step2_decimate=4,
+                             reach=REACH_TABLE6_FAST, reach_fallback=ropts)  # fmt: skip
     synth = synthesize_W(fCL, cl_suite, box(V_TABLE6), sopts, executor=pool, workers=args.workers)
     timings["table6"] = time.perf_counter() - t0
     synth.to_json(out / "synthesis.json")
+    result.update({
+        "table6": {g: pairs(W) for g, W in synth.groups.items()},
+        "table6_alpha": synth.group_alpha, "table6_conformant": synth.group_conformant,
+        "table6_cases": {k: {"group": c.group, "alpha": c.alpha, "conformant": c.conformant, "seconds": c.seconds,
+                             "message": c.message, "W_TC": pairs(c.W_TC), "W_RC": pairs(c.W_RC)}
+                         for k, c in synth.cases.items()},
+    })  # fmt: skip
     print(f"3. Table 6 ({timings['table6']:.1f} s)\n" + synth.table(), flush=True)
 
     # 4. pictures
     t0 = time.perf_counter()
-    pngs = plot_tubes(fCL, cl_suite, synth, box(V_TABLE6), out, ropts)
+    result["pictures"] = plot_tubes(fCL, cl_suite, synth, box(V_TABLE6), out, ropts)
     timings["figures"] = time.perf_counter() - t0
 
     # 5. Table 8: f_B against the plant without actuator effects and noise, open and closed loop
@@ -292,23 +317,10 @@ def _run(args, out, suite, plain, pool, timings):
     for label, s8 in plain.items():
         # 25 Hz: with V of 1 cm the 10 Hz traces' linearisation error is too large to certify
         table8[label] = trace_table(fB, s8, box(V_TABLE8), (("ax", "delta"), fB.output_names), pool, decimate=4)
+    result["table8"] = table8
     timings["table8"] = time.perf_counter() - t0
     print(f"5. Table 8 ({timings['table8']:.1f} s): "
           + json.dumps({k: v.get("all", "see groups") for k, v in table8.items()}), flush=True)  # fmt: skip
-
-    return {
-        "table3": table3, "table4": table4, "table4_fB_requested": table4_req,
-        "table6": {g: pairs(W) for g, W in synth.groups.items()},
-        "table6_alpha": synth.group_alpha, "table6_conformant": synth.group_conformant,
-        "table6_cases": {k: {"group": c.group, "alpha": c.alpha, "conformant": c.conformant, "seconds": c.seconds,
-                             "message": c.message, "W_TC": pairs(c.W_TC), "W_RC": pairs(c.W_RC)}
-                         for k, c in synth.cases.items()},
-        "table8": table8,
-        "bicycle_parameters": params, "identification": ident, "actuator_parameters": act,
-        "V": {"table3": V_TABLE3.tolist(), "table4": V_TABLE4.tolist(), "table5": V_TABLE5.tolist(),
-              "table6": V_TABLE6.tolist(), "table8": V_TABLE8.tolist()},
-        "pictures": pngs, "cases": len(suite),
-    }  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -60,6 +60,12 @@ class SynthesisOptions:
         Compute the per-group ``W_RC,Mnvr``.
     reach : ReachOptions or None
         Options of the reachability analysis (default: ``ReachOptions()``).
+    reach_fallback : ReachOptions or None
+        More precise (slower) options, tried when a reach with ``reach``
+        fails (the set explodes or leaves the model's domain), never when it
+        merely misses a measurement: e.g. ``tensor_order=2`` first and 3 only
+        where the larger boxes of the merge need it.  Both are sound, so a
+        box verified by either is reachset conformant.
     trace : TraceOptions or None
         Options of the trace-conformance steps.
     """
@@ -71,6 +77,7 @@ class SynthesisOptions:
     step2_decimate: int = 1
     merge: bool = True
     reach: object = None
+    reach_fallback: object = None
     trace: TraceOptions | None = None
 
     def __post_init__(self):
@@ -81,6 +88,12 @@ class SynthesisOptions:
             raise OptionsError(f"merge_iterations must be a positive integer or None, got {mi!r}")
         if not (np.isfinite(self.alpha_max) and self.alpha_max >= 1.0):
             raise OptionsError(f"alpha_max must be a finite number >= 1, got {self.alpha_max!r}")
+        from reachconf.reach import ReachOptions
+
+        for name in ("reach", "reach_fallback"):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, ReachOptions):
+                raise OptionsError(f"{name} must be a ReachOptions or None, got {type(value).__name__}")
 
 
 @dataclass
@@ -205,8 +218,12 @@ def alpha_search(check, W: Interval, iterations: int = 10, alpha_max: float = 1.
 
 
 def _reach_check(model, case, W, V, options):
-    return reachset_conformance(model, case, W, V, options=options.reach, keep_tube=False,
-                                violation_distance=False, stop_at_first_violation=True)  # fmt: skip
+    res = reachset_conformance(model, case, W, V, options=options.reach, keep_tube=False,
+                               violation_distance=False, stop_at_first_violation=True)  # fmt: skip
+    if res.message and options.reach_fallback is not None:  # the reach itself failed: try the precise one
+        res = reachset_conformance(model, case, W, V, options=options.reach_fallback, keep_tube=False,
+                                   violation_distance=False, stop_at_first_violation=True)  # fmt: skip
+    return res
 
 
 def _reach_ok(model, case, W, V, options) -> bool:
