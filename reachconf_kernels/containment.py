@@ -188,17 +188,21 @@ def _certify(G, d, x, y, tol, s):
     return UNDECIDED
 
 
+@njit(cache=True)
+def _row_abs_sums(G):
+    """``sum_j |G_ij|`` per row: the interval-hull radius of ``Z(0, G)``."""
+    n, m = G.shape
+    r = np.zeros(n)
+    for i in range(n):
+        for j in range(m):
+            r[i] += abs(G[i, j])
+    return r
+
+
 @njit(cache=True, parallel=True)
 def contains_batch(c, G, P, tol):
     """Status per row of ``P``: 1 inside, 0 outside, -1 undecided (see module docstring)."""
-    n, m = G.shape
-    s = 1.0
-    for i in range(n):
-        acc = 0.0
-        for j in range(m):
-            acc += abs(G[i, j])
-        if acc > s:
-            s = acc
+    s = max(1.0, np.max(_row_abs_sums(G))) if G.shape[0] else 1.0
     out = np.empty(P.shape[0], dtype=np.int64)
     for k in prange(P.shape[0]):
         d = P[k] - c
@@ -242,20 +246,12 @@ def contains_mapped_sequence(tp_c, tp_G, ng, C, off, v_rad, P, tol, stop_at_outs
             if v_rad[i] > 0.0:
                 G[i, j] = v_rad[i]
                 j += 1
-        s = 1.0
+        r = _row_abs_sums(G)
+        s = max(1.0, np.max(r)) if p else 1.0
         inside_hull = True
-        for i in range(p):
-            acc = 0.0
-            for jj in range(m):
-                acc += abs(G[i, jj])
-            if acc > s:
-                s = acc
         d = P[k] - c
         for i in range(p):
-            acc = 0.0
-            for jj in range(m):
-                acc += abs(G[i, jj])
-            if abs(d[i]) > acc * (1.0 + tol) + tol * s:
+            if abs(d[i]) > r[i] * (1.0 + tol) + tol * s:
                 inside_hull = False
                 break
         if not inside_hull:

@@ -109,6 +109,8 @@ def test_sqrt_exp_log_atan_tanh_abs_contain_exact(a1, a2):
     lo, hi = iv.tanh(lo_a, hi_a)
     assert -1.0 <= lo <= hi <= 1.0
     assert all(inside(lo, hi, mpmath.tanh(mpmath.mpf(x))) for x in pts)
+    # tight: no wider than the exact range plus a few ulps of rounding
+    assert hi - lo <= float(mpmath.tanh(hi_a) - mpmath.tanh(lo_a)) + 1e-15 * (1 + abs(hi) + abs(lo))
     lo, hi = iv.abs(lo_a, hi_a)
     assert all(inside(lo, hi, abs(mpmath.mpf(x))) for x in pts)
     if hi_a < 700:
