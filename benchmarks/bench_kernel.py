@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from reachconf import Zonotope
-from reachconf.containment import contains_points_lp
+from reachconf.sets import contains_points_lp
 from reachconf_kernels import zonotope as zk
 
 N_DIM, N_GEN, ORDER, N_POINTS, N_LP = 6, 100, 10, 10_000, 400

@@ -106,7 +106,7 @@ def bench_laub_loomis(repeat):
 
 def bench_closed_loop_bicycle(repeat):
     try:
-        from reachconf.campaign import reference_path
+        from reachconf.datasets.vehicle_campaign import reference_path
         from reachconf.models import bicycle_closed_loop
     except ImportError as exc:  # pragma: no cover - campaign not available
         return {"benchmark": "closed-loop bicycle", "verified": None, "seconds": float("nan"),

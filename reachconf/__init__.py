@@ -7,12 +7,20 @@ trace and reachset conformance with minimal disturbance-set synthesis
 (:mod:`reachconf.conformance`) and sim-to-real gap diagnosis
 (:mod:`reachconf.diagnose`).
 
-Public names are imported lazily so that ``import reachconf`` stays cheap.
+Every public name is imported when it is first used, so ``import reachconf``
+stays cheap.  ``reachconf.reach`` and ``reachconf.diagnose`` are the
+functions; their modules of the same names stay importable
+(``from reachconf.reach import ReachOptions``).  Modules that moved keep
+their old import paths (``reachconf.simulate``, ``reachconf.campaign``, ...).
 """
 
 from __future__ import annotations
 
 import importlib
+import importlib.abc
+import importlib.util
+import sys
+import types
 
 from reachconf.errors import (
     ConformanceError,
@@ -21,68 +29,126 @@ from reachconf.errors import (
     OptionsError,
     ReachconfError,
     ReachError,
+    SetArgumentError,
     SetError,
     SolverError,
 )
 
-__version__ = "0.1.0"
-
-# ``reach`` is both a module and its main function: import it eagerly so that
-# the function, not the submodule, is the package attribute.
-from reachconf.reach import ReachOptions, reach  # noqa: E402
-
-# ``diagnose`` likewise: the function (``reachconf.diagnose(model, suite)``), its package stays importable
-from reachconf.diagnose import DiagnoseOptions, GapReport, diagnose, locate_gap  # noqa: E402
-
 # public name -> module that defines it
 _LAZY = {
-    "Interval": "reachconf.sets",
-    "Zonotope": "reachconf.sets",
-    "Model": "reachconf.model",
+    "Interval": "reachconf.sets.core",
+    "Zonotope": "reachconf.sets.core",
+    "SetUnion": "reachconf.sets.union",
+    "BoxDisk": "reachconf.sets.disk",
+    "as_box": "reachconf.sets.convert",
+    "as_zonotope": "reachconf.sets.convert",
+    "Model": "reachconf.model.core",
+    "simulate": "reachconf.model.simulate",
+    "reach": "reachconf.reach",
+    "reach_run": "reachconf.reach",
+    "ReachOptions": "reachconf.reach_options",
     "ReachTube": "reachconf.tube",
     "models": "reachconf.models",
-    "load_suite": "reachconf.io",
-    "save_suite": "reachconf.io",
-    "TestSuite": "reachconf.io",
-    "TestCase": "reachconf.io",
-    "trace_conformance": "reachconf.conformance",
-    "TraceResult": "reachconf.conformance",
-    "minimal_trace_bounds": "reachconf.conformance",
-    "reachset_conformance": "reachconf.conformance",
-    "synthesize_W": "reachconf.conformance",
-    "SynthesisResult": "reachconf.conformance",
-    "pareto_front": "reachconf.conformance",
+    "load_suite": "reachconf.io.files",
+    "save_suite": "reachconf.io.files",
+    "TestSuite": "reachconf.io.cases",
+    "TestCase": "reachconf.io.cases",
+    "atomic_write": "reachconf.io.atomic",
+    "trace_conformance": "reachconf.conformance.trace",
+    "trace_disturbances": "reachconf.conformance.trace",
+    "TraceOptions": "reachconf.conformance.trace",
+    "TraceResult": "reachconf.conformance.trace",
+    "minimal_trace_bounds": "reachconf.conformance.bounds",
+    "reachset_conformance": "reachconf.conformance.reachset",
+    "ReachsetResult": "reachconf.conformance.reachset",
+    "synthesize_W": "reachconf.conformance.synthesis",
+    "SynthesisOptions": "reachconf.conformance.synthesis",
+    "SynthesisResult": "reachconf.conformance.synthesis",
+    "pareto_front": "reachconf.conformance.pareto",
+    "ParetoFront": "reachconf.conformance.pareto",
+    "diagnose": "reachconf.diagnose.pipeline",
+    "DiagnoseOptions": "reachconf.diagnose.fit",
+    "GapReport": "reachconf.diagnose.report",
+    "locate_gap": "reachconf.diagnose.locate",
+}
+
+#: old module path -> the module's home since the layout of issue 14 (the old paths keep working)
+MOVED_MODULES = {
+    "reachconf.codegen": "reachconf.model.codegen",
+    "reachconf.output_map": "reachconf.model.outputs",
+    "reachconf.simulate": "reachconf.model.simulate",
+    "reachconf.containment": "reachconf.sets.containment",
+    "reachconf.campaign": "reachconf.datasets.vehicle_campaign",
+    "reachconf.campaign.controller": "reachconf.models.vehicle_controller",
+    "reachconf.campaign.maneuvers": "reachconf.datasets.vehicle_campaign.maneuvers",
+    "reachconf.campaign.plant": "reachconf.datasets.vehicle_campaign.plant",
+    "reachconf.campaign.generate": "reachconf.datasets.vehicle_campaign.generate",
 }
 
 __all__ = [
     "__version__",
     "ReachconfError",
     "SetError",
+    "SetArgumentError",
     "ModelError",
     "ReachError",
     "DataError",
     "ConformanceError",
     "SolverError",
     "OptionsError",
-    "reach",
-    "ReachOptions",
-    "diagnose",
-    "DiagnoseOptions",
-    "GapReport",
-    "locate_gap",
     *_LAZY,
 ]
 
 
 def __getattr__(name):
-    module_name = _LAZY.get(name)
-    if module_name is None:
-        raise AttributeError(f"module 'reachconf' has no attribute {name!r}")
-    module = importlib.import_module(module_name)
-    value = module if name == "models" and module_name == "reachconf.models" else getattr(module, name)
+    if name == "__version__":
+        from importlib import metadata
+
+        try:
+            value = metadata.version("reachconf")
+        except metadata.PackageNotFoundError:  # pragma: no cover - a plain source checkout
+            value = "0+unknown"
+    else:
+        module_name = _LAZY.get(name)
+        if module_name is None:
+            raise AttributeError(f"module 'reachconf' has no attribute {name!r}")
+        module = importlib.import_module(module_name)
+        value = module if name == "models" else getattr(module, name)
     globals()[name] = value
     return value
 
 
 def __dir__():
     return sorted(set(globals()) | set(_LAZY))
+
+
+class _Package(types.ModuleType):
+    """``reachconf`` itself: importing the module ``reachconf.reach`` (or the package ``reachconf.diagnose``)
+    must not replace the function of the same name on the package, which the import system would do."""
+
+    def __setattr__(self, name, value):
+        if name in ("reach", "diagnose") and isinstance(value, types.ModuleType):
+            return  # the module stays in sys.modules; the package attribute is the function
+        super().__setattr__(name, value)
+
+
+class _MovedModuleFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Resolves the old module paths of :data:`MOVED_MODULES` to the modules themselves (no copies)."""
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname in MOVED_MODULES:
+            return importlib.util.spec_from_loader(fullname, self)
+        return None
+
+    def create_module(self, spec):
+        module = importlib.import_module(MOVED_MODULES[spec.name])
+        self._spec = module.__spec__  # the import system overwrites it with the alias spec: restored below
+        return module
+
+    def exec_module(self, module):
+        module.__spec__ = self._spec
+
+
+sys.modules[__name__].__class__ = _Package
+if not any(isinstance(f, _MovedModuleFinder) for f in sys.meta_path):
+    sys.meta_path.insert(0, _MovedModuleFinder())

@@ -21,9 +21,9 @@ __all__ = ["main"]
 
 
 def _write_json(path, obj):
-    from reachconf.io import atomic_write_text
+    from reachconf.io.atomic import atomic_write
 
-    atomic_write_text(path, json.dumps(obj, indent=2, default=_jsonable))
+    atomic_write(path, json.dumps(obj, indent=2, default=_jsonable))
 
 
 def _jsonable(v):
@@ -45,9 +45,9 @@ def _outdir(args) -> Path | None:
 
 
 def _savefig(fig, path: Path):
-    tmp = path.with_name("." + path.name + ".tmp.png")
-    fig.savefig(tmp, dpi=120)
-    os.replace(tmp, path)
+    from reachconf.plot import save_figure
+
+    save_figure(fig, path, dpi=120, bbox_inches=None)
 
 
 # ----------------------------------------------------------------------------- commands
@@ -120,7 +120,8 @@ def _xy_dims(model):
 
 
 def cmd_conform(args):
-    from reachconf.conformance import reachset_conformance, trace_conformance
+    from reachconf.conformance.reachset import reachset_conformance
+    from reachconf.conformance.trace import trace_conformance
 
     spec = _load(args)
     suite = _select_cases(spec, args)
@@ -154,7 +155,7 @@ def cmd_conform(args):
 def cmd_synth(args):
     import matplotlib.pyplot as plt
 
-    from reachconf.conformance import synthesize_W
+    from reachconf.conformance.synthesis import synthesize_W
 
     spec = _load(args)
     if spec.V is None:
@@ -230,8 +231,8 @@ def cmd_plot(args):
 
 def cmd_diagnose(args):
     """``reachconf diagnose RUN.toml --json report.json --out DIR``: the sim-to-real gap diagnosis."""
-    import reachconf as rc
-    from reachconf.io import TestSuite
+    from reachconf.diagnose.pipeline import diagnose
+    from reachconf.io.cases import TestSuite
     from reachconf.runfile import diagnose_settings
 
     spec = _load(args)
@@ -243,15 +244,15 @@ def cmd_diagnose(args):
             raise DataError(f"{spec.path}: no test cases named {missing} in {spec.suite_path}")
         suite = TestSuite(cases)
     kwargs = diagnose_settings(spec)
-    report = rc.diagnose(spec.model, suite, V=spec.V, **kwargs)
+    report = diagnose(spec.model, suite, V=spec.V, **kwargs)
     out = _outdir(args)
     if args.json:
         report.to_json(args.json)
     if out is not None:
-        from reachconf.io import atomic_write_text
+        from reachconf.io.atomic import atomic_write
 
         report.to_json(out / "report.json")
-        atomic_write_text(out / "report.md", report.summary())
+        atomic_write(out / "report.md", report.summary())
         report.plot(out)
     print(report.verdict)
     return 0

@@ -3,7 +3,7 @@
 :func:`make_demo_suite` is the documented, seeded generator of the example
 suite shipped in ``reachconf/data/demo`` (regenerate it with
 ``python -m reachconf.demo DIR``): a smooth lane change (3.5 m over 30 m) at
-10 m/s, tracked by :func:`reachconf.campaign.controller.tracking_law`; each
+10 m/s, tracked by :func:`reachconf.models.vehicle_controller.tracking_law`; each
 ODE gets a disturbance drawn uniformly from :data:`W_TRUE`, held for 0.1 s;
 the states are measured with uniform noise in :data:`V_TRUE`; 50 Hz, 4 s.
 
@@ -14,6 +14,7 @@ the measured traces.
 
 from __future__ import annotations
 
+import io
 import json
 import sys
 import time
@@ -22,7 +23,17 @@ from pathlib import Path
 
 import numpy as np
 
-from reachconf.sets import Interval
+from reachconf.conformance.reachset import reachset_conformance
+from reachconf.conformance.synthesis import synthesize_W
+from reachconf.conformance.trace import trace_conformance
+from reachconf.datasets.vehicle_campaign.maneuvers import lane_change
+from reachconf.io.atomic import atomic_write
+from reachconf.io.cases import TestCase, TestSuite
+from reachconf.io.files import save_suite
+from reachconf.model.simulate import simulate
+from reachconf.models import get_model
+from reachconf.runfile import load_run
+from reachconf.sets.core import Interval
 
 __all__ = ["W_TRUE", "V_TRUE", "lane_change_reference", "make_demo_suite", "run_demo", "demo_run_file"]
 
@@ -35,16 +46,14 @@ V_TRUE = Interval([-0.02, -0.02, -0.005, -0.03, -0.03, -0.01], [0.02, 0.02, 0.00
 def lane_change_reference(t, v=10.0, width=3.5, start=5.0, length=30.0):
     """Reference ``(X_ref, Y_ref, psi_ref, v_ref, kappa_ref)`` of a smooth lane change, shape (K, 5).
 
-    ``Y(s) = width (u - sin(2 pi u) / (2 pi))`` with ``u = (s - start) / length``
-    clipped to [0, 1]: the curvature is continuous (no kink in the reference).
+    The lateral offset over the travelled distance ``s = v t`` is the
+    campaign's :func:`~reachconf.datasets.vehicle_campaign.maneuvers.lane_change`
+    (``Y(s) = width (u - sin(2 pi u) / (2 pi))``, ``u = (s - start) / length``
+    clipped to [0, 1]): the curvature is continuous (no kink in the reference).
     """
     t = np.asarray(t, dtype=float)
     s = v * t
-    u = np.clip((s - start) / length, 0.0, 1.0)
-    on = (u > 0) & (u < 1)
-    Y = width * (u - np.sin(2 * np.pi * u) / (2 * np.pi))
-    dY = np.where(on, width * (1 - np.cos(2 * np.pi * u)) / length, 0.0)
-    ddY = np.where(on, width * 2 * np.pi * np.sin(2 * np.pi * u) / length**2, 0.0)
+    Y, dY, ddY = lane_change(s, start, length, width)
     psi = np.arctan(dY)
     kappa = ddY / (1 + dY**2) ** 1.5
     return np.column_stack([s, Y, psi, np.full_like(t, v), kappa])
@@ -52,10 +61,6 @@ def lane_change_reference(t, v=10.0, width=3.5, start=5.0, length=30.0):
 
 def make_demo_suite(folder, n_cases: int = 3, seed: int = 2026, duration: float = 4.0, rate: float = 50.0):
     """Generate the demo suite (seeded, deterministic) into ``folder``; returns the TestSuite."""
-    from reachconf.io import TestCase, TestSuite, save_suite
-    from reachconf.models import get_model
-    from reachconf.simulate import simulate
-
     model = get_model("bicycle_closed_loop")
     rng = np.random.default_rng(seed)
     t = np.round(np.arange(0.0, duration + 1e-9, 1.0 / rate), 10)
@@ -85,10 +90,6 @@ def run_demo(out, workers=None, log=print) -> dict:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from reachconf.conformance import reachset_conformance, synthesize_W, trace_conformance
-    from reachconf.io import atomic_write_text
-    from reachconf.runfile import load_run
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -132,13 +133,13 @@ def run_demo(out, workers=None, log=print) -> dict:
     ax.legend(loc="upper left")
     fig.tight_layout()
     png = out / "reach_tube_xy.png"
-    tmp = out / ".reach_tube_xy.tmp.png"
-    fig.savefig(tmp, dpi=120)
-    tmp.replace(png)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=120)
+    atomic_write(png, buf.getvalue())
     plt.close(fig)
     summary["timings"]["tube"] = time.perf_counter() - t0
     summary["timings"]["total"] = time.perf_counter() - t_all
-    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2, default=float))
+    atomic_write(out / "summary.json", json.dumps(summary, indent=2, default=float))
     log(f"demo done in {summary['timings']['total']:.1f} s: {png}, {out / 'synthesis.json'}, {out / 'summary.json'}")
     return summary
 

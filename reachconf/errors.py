@@ -16,6 +16,7 @@ __all__ = [
     "ConformanceError",
     "SolverError",
     "OptionsError",
+    "SetArgumentError",
 ]
 
 
@@ -65,3 +66,11 @@ class SolverError(ReachconfError, RuntimeError):
 
 class OptionsError(ReachconfError, ValueError):
     """An options object (reach, conformance, synthesis) has an invalid value."""
+
+
+class SetArgumentError(SetError, OptionsError):
+    """A set passed as an argument (``X0``, ``W``, ``V``) has the wrong type or dimension.
+
+    Both a :class:`SetError` and an :class:`OptionsError`: the set is bad, and
+    so is the argument.
+    """

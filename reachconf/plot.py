@@ -1,15 +1,20 @@
-"""Plotting helpers (matplotlib, imported lazily)."""
+"""Drawing reach tubes (matplotlib, imported when drawing) and saving figures atomically."""
 
 from __future__ import annotations
 
+import io
+from pathlib import Path
+
 import numpy as np
+
+from reachconf.errors import SetError
+from reachconf.io.atomic import atomic_write
+from reachconf.sets.union import SetUnion
 
 __all__ = ["plot_tube", "save_figure"]
 
 
 def _pieces(s):
-    from reachconf.tube import SetUnion
-
     return s.pieces if isinstance(s, SetUnion) else (s,)
 
 
@@ -17,15 +22,13 @@ def plot_tube(tube, dims=("X", "Y"), ax=None, color="C0", alpha=0.35, outline=Tr
     """Draw a :class:`~reachconf.ReachTube` projected on two states.
 
     Time-interval sets are filled polygons (one ``PolyCollection``), time-point
-    sets are outlined.
+    sets are outlined.  Returns the axes.
     """
     import matplotlib.pyplot as plt
     from matplotlib.collections import PolyCollection
 
-    idx = tube._dims(dims)
+    idx = tube.dim_indices(dims)
     if len(idx) != 2:
-        from reachconf.errors import SetError
-
         raise SetError(f"plot needs two dimensions, got {dims!r}")
     if ax is None:
         _, ax = plt.subplots(figsize=(8, 5))
@@ -45,16 +48,24 @@ def plot_tube(tube, dims=("X", "Y"), ax=None, color="C0", alpha=0.35, outline=Tr
     return ax
 
 
-def save_figure(fig, path, dpi=130):
-    """Save a figure atomically (write to a temporary file, then rename)."""
-    import os
-    import tempfile
-    from pathlib import Path
+def save_figure(fig, path, dpi=130, **savefig):
+    """Save a figure atomically (rendered to memory, then :func:`reachconf.io.atomic_write`).
 
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    path : path-like
+        The format follows the suffix (``.png``, ``.pdf``, ``.svg``).
+    dpi : int, default 130
+    **savefig
+        Further arguments of ``Figure.savefig`` (default ``bbox_inches="tight"``).
+
+    Returns
+    -------
+    Path
+    """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.stem, suffix=path.suffix)
-    os.close(fd)
-    fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
-    os.replace(tmp, path)
-    return path
+    savefig.setdefault("bbox_inches", "tight")
+    buf = io.BytesIO()
+    fig.savefig(buf, format=path.suffix.lstrip(".") or "png", dpi=dpi, **savefig)
+    return atomic_write(path, buf.getvalue())

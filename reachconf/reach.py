@@ -20,18 +20,18 @@ from __future__ import annotations
 import math
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from reachconf.errors import OptionsError, ReachError, SetError
-from reachconf.sets import Interval, Zonotope
+from reachconf.errors import OptionsError, ReachError
+from reachconf.reach_options import ALGORITHMS, REDUCTIONS, ReachOptions
+from reachconf.sets.convert import as_zonotope
+from reachconf.sets.core import Zonotope
+from reachconf.tube import ReachTube
 
-__all__ = ["ReachOptions", "reach"]
+__all__ = ["ReachOptions", "reach", "reach_run", "ReachRun", "ReachStopped"]
 
-_ALGORITHMS = ("lin", "poly")
-_REDUCTIONS = ("girard", "pca")
-_SPLITS = ("generator", "box")
 _STATUS = {
     1: "a guarded interval operation failed (division by an interval containing 0, log/sqrt of a "
     "non-positive interval or tan across a pole)",
@@ -48,115 +48,9 @@ _TERMS = {
 }
 
 
-@dataclass(frozen=True)
-class ReachOptions:
-    """Options of :func:`reach` (CORA's reach options, typed).
-
-    Parameters
-    ----------
-    algorithm : {"lin", "poly"}, default "lin"
-        Conservative linearisation or polynomialisation (Althoff 2008/2013).
-    time_step : float or None, default None
-        Largest integration step.  ``None``: one hundredth of the horizon,
-        capped by the spacing of the sample times.
-    taylor_terms : int, default 4
-        Taylor terms of the matrix exponential (``r``); the remainder is bounded.
-    zonotope_order : float, default 20
-        Order (generators / dimension) the reachable sets are reduced to.
-    intermediate_order : float, default 20
-        Order of intermediate sets (time-interval set before the error loop,
-        error sets).
-    error_order : float, default 5
-        Order the set is reduced to before ``quad_map`` (tensor order 3).
-    tensor_order : int or None, default None
-        2 (interval Hessian) or 3 (Hessian at the point + interval third-order
-        tensor).  ``None``: 2 for "lin", 3 for "poly".
-    reduction : {"girard", "pca"}, default "girard"
-        Order-reduction method.
-    max_splits : int, default 8
-        How many times a set may be split when its error cannot be bounded.
-    split_method : {"generator", "box"}, default "generator"
-        "generator" halves the zonotope exactly along its generator of largest
-        normalised length; "box" halves the interval hull along its widest
-        normalised axis (CORA).
-    max_error : float or sequence of float, default inf
-        Abstraction-error bound per state above which the set is split.
-    max_error_iterations : int, default 25
-        Iterations of the abstraction-error fixed point before giving up.
-    rounding : float, default 1e-13
-        Relative allowance added per step for floating-point rounding of the
-        zonotope arithmetic.
-    progress : bool or None, default None
-        Show a tqdm bar; ``None``: when stderr is a terminal and the run is long.
-    """
-
-    algorithm: str = "lin"
-    time_step: float | None = None
-    taylor_terms: int = 4
-    zonotope_order: float = 20.0
-    intermediate_order: float = 20.0
-    error_order: float = 5.0
-    tensor_order: int | None = None
-    reduction: str = "girard"
-    max_splits: int = 8
-    split_method: str = "generator"
-    max_error: float | tuple = math.inf
-    max_error_iterations: int = 25
-    rounding: float = 1e-13
-    progress: bool | None = None
-
-    def __post_init__(self):
-        if self.algorithm not in _ALGORITHMS:
-            raise OptionsError(f"ReachOptions.algorithm must be one of {_ALGORITHMS}, got {self.algorithm!r}")
-        if self.time_step is not None and not (math.isfinite(self.time_step) and self.time_step > 0):
-            raise OptionsError(f"ReachOptions.time_step must be a positive number, got {self.time_step!r}")
-        if not (isinstance(self.taylor_terms, (int, np.integer)) and 1 <= self.taylor_terms <= 20):
-            raise OptionsError(f"ReachOptions.taylor_terms must be an integer in 1..20, got {self.taylor_terms!r}")
-        for name in ("zonotope_order", "intermediate_order", "error_order"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float, np.number)) and value >= 1 and math.isfinite(value)):
-                raise OptionsError(f"ReachOptions.{name} must be a number >= 1, got {value!r}")
-        to = self.effective_tensor_order
-        if to not in (2, 3):
-            raise OptionsError(f"ReachOptions.tensor_order must be 2 or 3, got {self.tensor_order!r}")
-        if self.algorithm == "poly" and to != 3:
-            raise OptionsError("ReachOptions: algorithm 'poly' needs tensor_order=3")
-        if self.reduction not in _REDUCTIONS:
-            raise OptionsError(f"ReachOptions.reduction must be one of {_REDUCTIONS}, got {self.reduction!r}")
-        if self.split_method not in _SPLITS:
-            raise OptionsError(f"ReachOptions.split_method must be one of {_SPLITS}, got {self.split_method!r}")
-        if not (isinstance(self.max_splits, (int, np.integer)) and self.max_splits >= 0):
-            raise OptionsError(f"ReachOptions.max_splits must be a non-negative integer, got {self.max_splits!r}")
-        if not (isinstance(self.max_error_iterations, (int, np.integer)) and self.max_error_iterations >= 2):
-            raise OptionsError("ReachOptions.max_error_iterations must be an integer >= 2")
-        me = np.atleast_1d(np.asarray(self.max_error, dtype=float))
-        if np.any(np.isnan(me)) or np.any(me <= 0):
-            raise OptionsError("ReachOptions.max_error must be positive (inf allowed)")
-        if not (0 <= self.rounding < 1e-6):
-            raise OptionsError("ReachOptions.rounding must be in [0, 1e-6)")
-
-    @property
-    def effective_tensor_order(self) -> int:
-        if self.tensor_order is None:
-            return 3 if self.algorithm == "poly" else 2
-        return int(self.tensor_order)
-
-
 # ---------------------------------------------------------------------------
 # argument handling
 # ---------------------------------------------------------------------------
-def _as_zonotope(value, dim: int, name: str) -> Zonotope:
-    if isinstance(value, Zonotope):
-        Z = value
-    elif isinstance(value, Interval):
-        Z = value.to_zonotope()
-    else:
-        raise SetError(f"{name} must be a reachconf Interval or Zonotope, got {type(value).__name__}")
-    if Z.dim != dim:
-        raise SetError(f"{name} has dimension {Z.dim}, the model needs {dim}")
-    return Z
-
-
 def _sample_times(times) -> np.ndarray:
     arr = np.asarray(times, dtype=float)
     if arr.ndim == 0:
@@ -294,16 +188,17 @@ def reach(model, X0, times, inputs=None, W=None, options: ReachOptions | None = 
     ------
     SetError, ReachError, OptionsError
     """
-    from reachconf.tube import ReachTube
-
-    run = _reach_run(model, X0, times, inputs, W, options)
-    return ReachTube.from_branches(model=model, samples=run.samples, step_offsets=run.step_offsets,
-                                   t_start=run.t_start, dts=run.dts, X0=run.X0, branches=run.branches,
-                                   options=run.options, W=run.W, splits=run.splits, seconds=run.seconds)  # fmt: skip
+    return ReachTube.from_run(reach_run(model, X0, times, inputs, W, options), model)
 
 
 class ReachStopped(Exception):
-    """Raised by :func:`_reach_run` when its ``monitor`` asks to stop (not a user error)."""
+    """Raised by :func:`reach_run` when its ``monitor`` asks to stop (not a user error).
+
+    Attributes
+    ----------
+    sample : int
+        Index of the sample time at which the monitor stopped the reach.
+    """
 
     def __init__(self, sample: int):
         super().__init__(f"stopped by the monitor at sample {sample}")
@@ -311,7 +206,30 @@ class ReachStopped(Exception):
 
 
 @dataclass
-class _ReachRun:
+class ReachRun:
+    """The raw result of :func:`reach_run`: the sets as kernel arrays, per branch of the splits.
+
+    ``ReachTube.from_run(run, model)`` turns it into a :class:`~reachconf.ReachTube`.
+
+    Attributes
+    ----------
+    samples : ndarray (K,)
+        Sample times.
+    step_offsets : ndarray (K,)
+        Number of integration steps up to each sample time.
+    t_start, dts : ndarray (S,)
+        Start and length of each integration step.
+    X0, W : Zonotope
+        The initial and disturbance sets used.
+    branches : list of (first_step, stop_step, store)
+        Arrays of the sets of each branch (one without splits).
+    splits : int
+    seconds : float
+    options : ReachOptions
+    monitored : bool
+        Every sample after the first was passed to the monitor (no split happened).
+    """
+
     samples: np.ndarray
     step_offsets: np.ndarray
     t_start: np.ndarray
@@ -325,14 +243,25 @@ class _ReachRun:
     monitored: bool  # every sample after the first was passed to the monitor (no split happened)
 
 
-def _reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None) -> _ReachRun:
-    """The computation behind :func:`reach`, on raw arrays.
+def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None) -> ReachRun:
+    """The computation behind :func:`reach`, on raw arrays, optionally watched by a monitor.
+
+    Arguments as :func:`reach`, plus ``monitor``.
 
     ``monitor(samples, c, G, ng)``, if given, is called after every computed
     chunk of the unsplit reach with the indices of the sample times the chunk
     reached and their time-point sets (``c`` (J, n), ``G`` (J, n, gmax), ``ng``
     (J,) generators in use); a True return raises :class:`ReachStopped`.  After
     a split the monitor is no longer called (``monitored`` is then False).
+
+    Returns
+    -------
+    ReachRun
+
+    Raises
+    ------
+    SetError, ReachError, OptionsError
+        As :func:`reach`; :class:`ReachStopped` when the monitor stops the run.
     """
     from reachconf_kernels import nonlinear as nl
 
@@ -340,10 +269,10 @@ def _reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None
     if not isinstance(options, ReachOptions):
         raise OptionsError(f"options must be a ReachOptions, got {type(options).__name__}")
     n, q = model.n, model.q
-    Z0 = _as_zonotope(X0, n, "X0")
+    Z0 = as_zonotope(X0, n, "X0")
     if W is None:
         W = Zonotope(np.zeros(q), np.zeros((q, 0)))
-    Wz = _as_zonotope(W, q, "W")
+    Wz = as_zonotope(W, q, "W")
     scalar = np.ndim(times) == 0
     samples = _sample_times(times)
     dts, t_start, sample_of_step, step_offsets = _step_grid(samples, options.time_step, scalar)
@@ -359,8 +288,8 @@ def _reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None
     gmax = int(n * max(options.zonotope_order, 1.0)) + n + 1
     me = np.broadcast_to(np.asarray(options.max_error, dtype=float), (n,)).copy()
     params = model.param_vector
-    algorithm = _ALGORITHMS.index(options.algorithm)
-    reduce_method = _REDUCTIONS.index(options.reduction)
+    algorithm = ALGORITHMS.index(options.algorithm)
+    reduce_method = REDUCTIONS.index(options.reduction)
 
     def new_store():
         return dict(
@@ -427,7 +356,7 @@ def _reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None
         if bar is not None:
             bar.close()
     seconds = time.perf_counter() - t0
-    return _ReachRun(samples, step_offsets, t_start, dts, Z0, Wz, branches, splits, seconds, options,
+    return ReachRun(samples, step_offsets, t_start, dts, Z0, Wz, branches, splits, seconds, options,
                      monitor is not None and splits == 0)  # fmt: skip
 
 

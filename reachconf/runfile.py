@@ -32,8 +32,16 @@ from pathlib import Path
 
 import numpy as np
 
+from reachconf.conformance.synthesis import SynthesisOptions
+from reachconf.conformance.trace import TraceOptions
+from reachconf.diagnose.effects import EFFECTS
+from reachconf.diagnose.fit import DiagnoseOptions
 from reachconf.errors import DataError, ReachconfError
-from reachconf.sets import Interval
+from reachconf.io.files import load_suite
+from reachconf.model.core import Model
+from reachconf.models import get_model
+from reachconf.reach_options import ReachOptions
+from reachconf.sets.core import Interval
 
 __all__ = ["RunSpec", "load_run", "resolve_model", "diagnose_settings"]
 
@@ -58,16 +66,12 @@ class RunSpec:
     raw: dict
 
     def suite(self):
-        from reachconf.io import load_suite
-
+        """The test suite the run file names (loaded with the model's signal names)."""
         return load_suite(self.suite_path, model=self.model)
 
 
 def resolve_model(name: str, params=None, where="model"):
     """A built-in model by name or ``module:attribute`` (see :func:`reachconf.models.get_model`)."""
-    from reachconf.model import Model
-    from reachconf.models import get_model
-
     if not isinstance(name, str) or not name:
         raise DataError(f"{where}: model must be a non-empty string")
     try:
@@ -110,10 +114,6 @@ def _options(cls, table, where, drop=()):
 
 def load_run(path) -> RunSpec:
     """Parse and validate a run file (every error names the file and key)."""
-    from reachconf.conformance.synthesis import SynthesisOptions
-    from reachconf.conformance.trace import TraceOptions
-    from reachconf.reach import ReachOptions
-
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: run file does not exist")
@@ -154,8 +154,6 @@ def load_run(path) -> RunSpec:
 
 def diagnose_settings(spec: RunSpec) -> dict:
     """Keyword arguments of :func:`reachconf.diagnose` from the run file's ``[diagnose]`` table."""
-    from reachconf.diagnose import EFFECTS, DiagnoseOptions
-
     where = f"{spec.path}: [diagnose]"
     table = dict(spec.raw.get("diagnose", {}))
     kwargs = {}

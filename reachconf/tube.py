@@ -2,66 +2,21 @@
 
 from __future__ import annotations
 
+import io
 import json
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from reachconf.errors import DataError, ReachError, SetError
-from reachconf.sets import Interval, Zonotope
+from reachconf.io.atomic import atomic_write
+from reachconf.model.outputs import output_enclosure
+from reachconf.plot import plot_tube
+from reachconf.sets.core import Interval, Zonotope
+from reachconf.sets.union import SetUnion
 
 __all__ = ["ReachTube", "SetUnion", "Containment"]
-
-
-class SetUnion:
-    """Union of zonotopes (the pieces of a split reachable set at one time)."""
-
-    def __init__(self, pieces):
-        self.pieces = tuple(pieces)
-        if not self.pieces:
-            raise SetError("SetUnion needs at least one set")
-
-    @property
-    def dim(self) -> int:
-        return self.pieces[0].dim
-
-    def interval(self) -> Interval:
-        lo = np.min([p.interval().lo for p in self.pieces], axis=0)
-        hi = np.max([p.interval().hi for p in self.pieces], axis=0)
-        return Interval(lo, hi)
-
-    def contains(self, points, tol=1e-9):
-        result = None
-        for p in self.pieces:
-            r = np.asarray(p.contains(points, tol=tol))
-            result = r if result is None else (result | r)
-        return result if result.ndim else bool(result)
-
-    def project(self, dims):
-        return SetUnion([p.project(dims) for p in self.pieces])
-
-    def linear_map(self, M):
-        return SetUnion([M @ p for p in self.pieces])
-
-    def __add__(self, other):
-        return SetUnion([p + other for p in self.pieces])
-
-    def plot(self, ax=None, dims=(0, 1), **style):
-        for p in self.pieces:
-            ax = p.plot(ax, dims=dims, **style)
-        return ax
-
-    def __iter__(self):
-        return iter(self.pieces)
-
-    def __len__(self):
-        return len(self.pieces)
-
-    def __repr__(self):
-        return f"SetUnion({len(self.pieces)} zonotopes of dimension {self.dim})"
 
 
 @dataclass
@@ -92,7 +47,7 @@ class Containment:
 
 def _zono(c, G, ng):
     # kernel output (float64, right shapes): skip re-validation, it was a third of a short reach
-    return Zonotope._new(np.array(c, dtype=np.float64), np.ascontiguousarray(G[:, :ng], dtype=np.float64))
+    return Zonotope.from_kernel(np.array(c, dtype=np.float64), np.ascontiguousarray(G[:, :ng], dtype=np.float64))
 
 
 class ReachTube:
@@ -129,6 +84,13 @@ class ReachTube:
 
     # ----------------------------------------------------------- building
     @classmethod
+    def from_run(cls, run, model) -> "ReachTube":
+        """The tube of a finished :func:`reachconf.reach.reach_run` (a :class:`~reachconf.reach.ReachRun`)."""
+        return cls.from_branches(model=model, samples=run.samples, step_offsets=run.step_offsets,
+                                 t_start=run.t_start, dts=run.dts, X0=run.X0, branches=run.branches,
+                                 options=run.options, W=run.W, splits=run.splits, seconds=run.seconds)  # fmt: skip
+
+    @classmethod
     def from_branches(cls, *, model, samples, step_offsets, t_start, dts, X0, branches, options, W, splits, seconds):
         S = dts.size
         ti_pieces = [[] for _ in range(S)]
@@ -154,7 +116,8 @@ class ReachTube:
     def __len__(self):
         return self.times.size
 
-    def _dims(self, dims):
+    def dim_indices(self, dims) -> list[int]:
+        """State indices of ``dims`` (names or indices), checked (:class:`SetError` naming a bad one)."""
         idx = []
         for d in dims:
             if isinstance(d, str):
@@ -183,7 +146,7 @@ class ReachTube:
 
     def project(self, dims) -> "ReachTube":
         """The tube projected onto some states (names or indices)."""
-        idx = self._dims(dims)
+        idx = self.dim_indices(dims)
         return ReachTube(
             self.times,
             [s.project(idx) for s in self.time_point_sets],
@@ -216,8 +179,6 @@ class ReachTube:
         """Enclosures of ``h(R(t_k), u_k)`` for every sample time (without V)."""
         if self.model is None:
             raise ReachError("this tube has no model attached (loaded from a file); pass output=False")
-        from reachconf.output_map import output_enclosure
-
         return [output_enclosure(self.model, s, None if inputs is None else inputs[k])
                 for k, s in enumerate(self.time_point_sets)]  # fmt: skip
 
@@ -250,8 +211,6 @@ class ReachTube:
         for i, t in enumerate(times):
             S = self.at(t)
             if output:
-                from reachconf.output_map import output_enclosure
-
                 u = None if inputs is None else np.asarray(inputs, dtype=float)[i]
                 S = output_enclosure(self.model, S, u)
             if V is not None:
@@ -265,8 +224,6 @@ class ReachTube:
     # ------------------------------------------------------------- output
     def plot(self, dims=("X", "Y"), ax=None, color="C0", alpha=0.35, outline=True, label=None):
         """Draw the 2-D projection: filled time-interval sets, outlined time-point sets."""
-        from reachconf.plot import plot_tube
-
         return plot_tube(self, dims=dims, ax=ax, color=color, alpha=alpha, outline=outline, label=label)
 
     def save(self, path) -> Path:
@@ -290,12 +247,9 @@ class ReachTube:
             arrays[f"{prefix}_ng"] = np.array([G.shape[1] for G in Gs])
             arrays[f"{prefix}_owner"] = np.array(owner)
         arrays["meta"] = np.array(json.dumps({**self.meta, "splits": self.splits, "seconds": self.seconds}))
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp.npz")
-        os.close(fd)
-        np.savez_compressed(tmp, **arrays)
-        os.replace(tmp, path)
-        return path
+        buf = io.BytesIO()
+        np.savez_compressed(buf, **arrays)
+        return atomic_write(path, buf.getvalue())
 
     @classmethod
     def load(cls, path) -> "ReachTube":

@@ -15,7 +15,11 @@ from reachconf_kernels.signatures import FN_POINT_MAT, FN_POINT_VEC, f8_1, f8_2
 
 
 @njit(cache=True)
-def _rk4_step(f, x, zbuf, n, p, h, k1, k2, k3, k4, tmp):
+def rk4_step(f, x, zbuf, n, p, h, k1, k2, k3, k4, tmp):
+    """One classical RK4 step of ``x' = f(z, p)`` in place; ``zbuf`` holds ``(x, u, w)`` with ``u, w`` set.
+
+    ``k1..k4, tmp`` are work arrays of length ``n``.
+    """
     zbuf[:n] = x
     f(zbuf, p, k1)
     for i in range(n):
@@ -58,7 +62,7 @@ def rk4_trace(f, x0, U, Wt, times, p, substeps):
         z[n + m :] = Wt[k]
         h = (times[k + 1] - times[k]) / substeps
         for s in range(substeps):
-            _rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
+            rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
         X[k + 1] = x
     return X
 
@@ -87,7 +91,7 @@ def rk4_one_step_each(f, X0, U, Wt, dts, p, substeps):
         z[n + m :] = Wt[k]
         h = dts[k] / substeps
         for s in range(substeps):
-            _rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
+            rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
         out[k] = x
     return out
 
@@ -146,6 +150,6 @@ def rk4_windows(f, X0, starts, U, times, p, q, length, substeps):
             z[n : n + m] = U[k]
             h = (times[k + 1] - times[k]) / substeps
             for s in range(substeps):
-                _rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
+                rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
             out[j, i] = x
     return out

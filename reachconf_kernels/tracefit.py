@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, types
 
-from reachconf_kernels.integrate import _rk4_step
+from reachconf_kernels.integrate import rk4_step
 from reachconf_kernels.signatures import FN_POINT_MAT, FN_POINT_VEC, f8_1, f8_2, f8_3
 
 
@@ -26,7 +26,7 @@ def _flow(f, x0, u, w, p, dt, substeps, n, m, z, k1, k2, k3, k4, tmp):
     z[n + m :] = w
     h = dt / substeps
     for s in range(substeps):
-        _rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
+        rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
     return x
 
 

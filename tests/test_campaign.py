@@ -3,9 +3,7 @@
 import numpy as np
 import pytest
 
-from reachconf.campaign import reference_path
-from reachconf.campaign.generate import make_case
-from reachconf.campaign.plant import NO_EFFECTS, PlantEffects
+from reachconf.datasets.vehicle_campaign import NO_EFFECTS, PlantEffects, make_case, reference_path
 
 pytest.importorskip("vehiclemodels")
 

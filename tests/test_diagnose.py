@@ -4,7 +4,7 @@ import numpy as np
 
 import reachconf as rc
 from reachconf.io import TestCase, TestSuite
-from reachconf.simulate import simulate
+from reachconf.model.simulate import simulate
 
 
 def test_locate_gap_finds_channel_segment_and_condition():
@@ -178,8 +178,6 @@ def test_report_files_and_reach_tubes(tmp_path):
     paths = rep.plot(tmp_path)
     assert {"effects.png", "boxes.png", "tubes.png"} <= {p.split("/")[-1] for p in paths}
     # soundness of the drawn tube: the measured positions lie in the tube's (X, Y) hull inflated by V
-    from reachconf.conformance.trace import _output_states  # noqa: F401
-
     for tb in drawn:
         lo = np.min([s.interval().lo[:2] for s in tb["tube"].time_point_sets], axis=0)
         hi = np.max([s.interval().hi[:2] for s in tb["tube"].time_point_sets], axis=0)

@@ -4,12 +4,12 @@ import pytest
 from conftest import load_example
 
 import reachconf as rc
-from reachconf.campaign.withheld import WITHHELD, nominal_bicycle_params, withheld_suite
 from reachconf.models import bicycle
 
 pytest.importorskip("vehiclemodels")
 example = load_example("diagnose")
 FIT, judge = example.FIT, example.judge
+WITHHELD, nominal_bicycle_params, withheld_suite = example.WITHHELD, example.nominal_bicycle_params, example.withheld_suite
 
 
 @pytest.fixture(scope="module")

@@ -69,7 +69,8 @@ def test_exact_sets_are_sound_and_tight():
 
 def test_exact_set_inside_reachconf_tube():
     """The closed-form acceleration-model set is inside the reach tube of eq. 73 computed by reachconf."""
-    from reachconf.models.pedestrian import disk_zonotope, pedestrian_acc
+    from reachconf.models.pedestrian import pedestrian_acc
+    from reachconf.sets import disk_zonotope
 
     m = pedestrian_acc()
     X0 = rc.Interval([-0.1, -0.1, 0.9, -0.1], [0.1, 0.1, 1.1, 0.1])

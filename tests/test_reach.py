@@ -5,8 +5,8 @@ import pytest
 
 import reachconf as rc
 from reachconf.models import bicycle, vanderpol
-from reachconf.simulate import simulate_ivp
-from reachconf.tube import SetUnion
+from reachconf.model.simulate import simulate_ivp
+from reachconf.sets import SetUnion
 
 RNG_SEED = 20261122
 

@@ -10,10 +10,10 @@ import pytest
 import sympy as sp
 
 import reachconf as rc
-from reachconf.containment import contains_points_lp
+from reachconf.sets import contains_points_lp
 from reachconf.conformance import reachset_conformance
 from reachconf.io import TestCase
-from reachconf.simulate import simulate
+from reachconf.model.simulate import simulate
 from reachconf_kernels.containment import contains_mapped_sequence
 
 W_STAR = rc.Interval([-0.4], [0.4])

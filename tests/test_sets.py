@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 import reachconf
 from reachconf import Interval, SetError, Zonotope
-from reachconf.containment import contains_points_lp
+from reachconf.sets import contains_points_lp
 
 TOL = 1e-9
 

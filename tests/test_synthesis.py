@@ -12,7 +12,7 @@ from reachconf.conformance import (
     trace_conformance,
 )
 from reachconf.io import TestCase, TestSuite
-from reachconf.simulate import simulate
+from reachconf.model.simulate import simulate
 
 W_STAR = rc.Interval([-1.0, -0.5], [1.0, 0.5])
 V_RAD = np.array([0.01, 0.01])
@@ -217,10 +217,10 @@ def test_reach_fallback_only_when_the_reach_itself_fails():
     W = rc.Interval([-0.01], [0.01])
     coarse = rc.ReachOptions(time_step=0.1, max_splits=0, zonotope_order=1, tensor_order=2, max_error=1e-4)
     fine = rc.ReachOptions(time_step=0.01, tensor_order=3)
-    alone = syn._reach_check(m, case, W, V, SynthesisOptions(reach=coarse))
+    alone = syn.reachset_check(m, case, W, V, SynthesisOptions(reach=coarse))
     assert not alone.conformant and alone.message  # the coarse reach fails
-    both = syn._reach_check(m, case, W, V, SynthesisOptions(reach=coarse, reach_fallback=fine))
+    both = syn.reachset_check(m, case, W, V, SynthesisOptions(reach=coarse, reach_fallback=fine))
     assert both.conformant and not both.message
     # a box that misses the measurements is not retried: same verdict, and the fine options never help it
     shifted = rc.Interval([0.3], [0.32])
-    assert not syn._reach_check(m, case, shifted, V, SynthesisOptions(reach=fine, reach_fallback=coarse)).conformant
+    assert not syn.reachset_check(m, case, shifted, V, SynthesisOptions(reach=fine, reach_fallback=coarse)).conformant

@@ -7,7 +7,7 @@ import reachconf as rc
 from reachconf.conformance import TraceOptions, minimize_box, trace_conformance, trace_disturbances
 from reachconf.io import TestCase, TestSuite
 from reachconf.models import bicycle
-from reachconf.simulate import simulate, simulate_ivp
+from reachconf.model.simulate import simulate, simulate_ivp
 
 W_STAR = rc.Interval([-0.2, -0.3, -0.3], [0.2, 0.3, 0.3])
 V_RAD = np.array([0.02, 0.02, 0.004, 0.02, 0.02, 0.004])
@@ -112,14 +112,14 @@ def test_minimal_trace_bounds_beat_true_box(model, suite):
     wider w1 for narrower w2/w3 and leave W* on one channel; tests/test_synthesis.py
     checks "inside W*" on a model whose channels are all well excited.)
     """
-    from reachconf.conformance.bounds import _case_box
+    from reachconf.conformance.bounds import case_box
     from reachconf.conformance.trace import TraceOptions as TO
 
     box = rc.minimal_trace_bounds(model, suite, V=V_SET, method="optctrl")
     for case in suite:
         assert trace_conformance(model, case, box, V_SET, method="optctrl").conformant
         scale = np.ptp(trace_disturbances(model, case).W_trace, axis=0)
-        lo, hi = _case_box((model, case, V_SET, "optctrl", "W", TO()))[:2]
+        lo, hi = case_box(model, case, V_SET, "optctrl", "W", TO())[:2]
         assert np.sum((hi - lo) / scale) <= np.sum((W_STAR.hi - W_STAR.lo) / scale) * 1.01
         assert np.all(lo >= box.lo) and np.all(hi <= box.hi)
 

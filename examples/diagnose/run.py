@@ -2,7 +2,7 @@
 
     python examples/diagnose/run.py --out DIR [--repetitions 3] [--only yaw_offset ...] [--workers 2]
 
-For every entry of :data:`reachconf.campaign.withheld.WITHHELD` (steering lag
+For every entry of :data:`withheld.WITHHELD` (steering lag
 0.1 s, steering dead time 80 ms, acceleration scale 0.64 with offset 0.32 m/s²,
 yaw sensor offset 1°, steering offset 1.09°, and none), the multi-body vehicle
 plant drives the excitation maneuver and a 4 m/s² slalom with that one effect;
@@ -25,10 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
-import reachconf as rc
-from reachconf.campaign.withheld import WITHHELD, nominal_bicycle_params, withheld_suite
-from reachconf.io import atomic_write_text
-from reachconf.models import bicycle
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from withheld import WITHHELD, nominal_bicycle_params, withheld_suite  # noqa: E402
+
+import reachconf as rc  # noqa: E402
+from reachconf.io import atomic_write  # noqa: E402
+from reachconf.models import bicycle  # noqa: E402
 
 FIT = ("J_m", "b_L", "c_f", "c_r")
 ACTUATOR_OR_SENSOR = {"actuator_lag", "dead_time", "input_offset", "input_scale", "output_offset", "output_scale"}
@@ -72,7 +75,7 @@ def run_one(job):
     folder = Path(out) / name
     folder.mkdir(parents=True, exist_ok=True)
     report.to_json(folder / "report.json")
-    atomic_write_text(folder / "report.md", report.summary())
+    atomic_write(folder / "report.md", report.summary())
     report.plot(folder)
     verdict = judge(report, truth)
     best = report.best
@@ -126,9 +129,9 @@ def main(argv=None) -> int:
                      desc="withheld suites")  # fmt: skip
     result = {"nominal": nominal, "rows": rows, "correct": sum(r["correct"] for r in rows), "total": len(rows),
               "seconds": time.perf_counter() - t0}  # fmt: skip
-    atomic_write_text(out / "confusion.json", json.dumps(result, indent=2, default=float))
+    atomic_write(out / "confusion.json", json.dumps(result, indent=2, default=float))
     md = table(rows)
-    atomic_write_text(out / "confusion.md", md)
+    atomic_write(out / "confusion.md", md)
     print(md)
     print(f"{result['correct']} / {result['total']} correct, {result['seconds']:.0f} s")
     return 0

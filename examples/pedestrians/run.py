@@ -13,7 +13,7 @@ time t the position sets are exactly
 
 (Minkowski sums; "exact" mode).  CORA encloses the disks by zonotopes, which
 makes the sets larger; ``--disk zonotope`` reproduces that with the
-circumscribed 16-gon of :func:`reachconf.models.pedestrian.disk_zonotope`.
+circumscribed 16-gon of :func:`reachconf.sets.disk_zonotope`.
 A test passes when every future position (every 0.4 s up to 1.6 s) lies in
 the intersection at its time.  Failures are classified as in section 7.4:
 "speed above v_max" (outside the velocity model's set only), "turning or
@@ -33,24 +33,20 @@ import numpy as np
 
 from reachconf.datasets.biwi import prediction_cases, read_sequence
 from reachconf.errors import ReachconfError
-from reachconf.io import atomic_write_text
+from reachconf.io import atomic_write
+from reachconf.sets import Zonotope, box_disk_distance, disk_zonotope
 
 A_MAX, V_MAX, HORIZON, P_UNC, V_UNC = 0.6, 2.0, 1.6, 0.1, 0.1
 REPORT = {"pedestrians": 420, "test_cases": 20084, "passed": 19843, "rate": 98.80}
-
-
-def _box_disk_distance(d, r):
-    """Euclidean distance of points ``d`` (..., 2) from the box ``[-r, r]^2``."""
-    e = np.maximum(np.abs(d) - r[..., None], 0.0)
-    return np.sqrt(np.sum(e * e, axis=-1))
 
 
 def required(cases):
     """Per case, the smallest a_max and v_max under which it passes (the models' set sizes are monotone)."""
     t = cases.offsets[None, :]
     pred = cases.p0[:, None, :] + t[..., None] * cases.v0[:, None, :]
-    d_acc = _box_disk_distance(cases.future - pred, np.broadcast_to(P_UNC + V_UNC * t, pred.shape[:2]))
-    d_vel = _box_disk_distance(cases.future - cases.p0[:, None, :], np.full(pred.shape[:2], P_UNC))
+    # distances from the boxes (disk radius 0): a case passes while they are within the disks' radii
+    d_acc = box_disk_distance(cases.future - pred, np.broadcast_to(P_UNC + V_UNC * t, pred.shape[:2])[..., None])
+    d_vel = box_disk_distance(cases.future - cases.p0[:, None, :], np.full(pred.shape[:2], P_UNC)[..., None])
     a_req = np.max(2.0 * d_acc / t**2, axis=1)
     v_req = np.max(d_vel / t, axis=1)
     return a_req, v_req
@@ -58,9 +54,6 @@ def required(cases):
 
 def zonotope_verdicts(cases, a_max, v_max, n_gen=8):
     """CORA-style sets: disks enclosed by a circumscribed 2k-gon (zonotope), boxes exact."""
-    from reachconf.models.pedestrian import disk_zonotope
-    from reachconf.sets import Zonotope
-
     ok_acc = np.ones(len(cases), bool)
     ok_vel = np.ones(len(cases), bool)
     for k, t in enumerate(cases.offsets):
@@ -125,7 +118,7 @@ def plot_curve(cases, out: Path):
     fig.savefig(out / "pass_rate_curve.png", dpi=120)
     plt.close(fig)
     curve = {"v_max": V_MAX, "a_max": grid.tolist(), "rate_percent": rate, "quantiles": quant}
-    atomic_write_text(out / "pass_rate_curve.json", json.dumps(curve, indent=2))
+    atomic_write(out / "pass_rate_curve.json", json.dumps(curve, indent=2))
     return curve
 
 
@@ -149,14 +142,14 @@ def main(argv=None):
     seconds = time.perf_counter() - t_start
     result = dict(table, seconds=seconds, setup=default, disk=args.disk, report=REPORT,
                   setups={k: v for k, (_, v) in variants.items()}, pass_rate_curve=curve["quantiles"])  # fmt: skip
-    atomic_write_text(out / "table9.json", json.dumps(result, indent=2))
+    atomic_write(out / "table9.json", json.dumps(result, indent=2))
     lines = ["| set-up | pedestrians | test cases | passed | rate |", "|---|---|---|---|---|",
              f"| report (Table 9) | {REPORT['pedestrians']} | {REPORT['test_cases']} | {REPORT['passed']} | {REPORT['rate']:.2f} % |"]  # fmt: skip
     for k, v in result["setups"].items():
         lines.append(f"| {k}{' (default)' if k == default else ''} | {v['pedestrians']} | {v['test_cases']} | "
                      f"{v['passed']} | {v['rate']:.2f} % |")  # fmt: skip
     lines += ["", "Failures of the default set-up: " + ", ".join(f"{k}: {n}" for k, n in table["failures"].items())]
-    atomic_write_text(out / "table9.md", "\n".join(lines) + "\n")
+    atomic_write(out / "table9.md", "\n".join(lines) + "\n")
     print("\n".join(lines))
     print(f"({seconds:.1f} s) wrote {out / 'table9.json'}")
     return 0

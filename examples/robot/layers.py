@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from reachconf.sets import box_disk_distance
+
 V_MAX, W_MAX, A_TRA, A_ROT = 1.5, 2.0, 1.5, 1.0
 R_ROBOT, LOC_UNC, HEAD_UNC, R_PED = 0.3, 0.05, 0.05, 0.27
 A_PED, V_PED, P_UNC, V_UNC = 0.6, 2.0, 0.1, 0.1
@@ -96,12 +98,6 @@ def stopping(v=V_MAX):
 
 
 # ------------------------------------------------------------ obstacle sets
-def _box_disk_dist(d, r_box, R):
-    """Distance from points d (relative to the box centre) to box(r_box) ⊕ disk(R) (negative inside)."""
-    e = np.maximum(np.abs(d) - r_box, 0.0)
-    return np.sqrt(np.sum(e * e, axis=-1)) - R
-
-
 def pedestrian_clearance(mid, t_hi, peds_p, peds_v, model="table9", age=None):
     """Distance from the points ``mid`` (C, J, 2) to each pedestrian's reachable set over period j.
 
@@ -118,11 +114,11 @@ def pedestrian_clearance(mid, t_hi, peds_p, peds_v, model="table9", age=None):
     th = t_hi[None, :, None] + age[None, None, :]
     if model == "ics":
         return np.linalg.norm(rel, axis=-1) - P_UNC * np.sqrt(2) - V_PED * th
-    d_vel = _box_disk_dist(rel, P_UNC, V_PED * th)
+    d_vel = box_disk_distance(rel, P_UNC, V_PED * th)
     vel = np.nan_to_num(peds_v)
     t_mid = th[..., None] - 0.5 * DT
     box = P_UNC + V_UNC * th[..., None] + np.abs(vel)[None, None] * 0.5 * DT
-    d_acc = _box_disk_dist(rel - t_mid * vel[None, None], box, 0.5 * A_PED * th**2)
+    d_acc = box_disk_distance(rel - t_mid * vel[None, None], box, 0.5 * A_PED * th**2)
     d_acc = np.where(np.isnan(peds_v[:, 0])[None, None, :], -np.inf, d_acc)
     return np.maximum(d_acc, d_vel)
 

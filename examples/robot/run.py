@@ -52,7 +52,8 @@ import numpy as np
 
 from reachconf.datasets.biwi import ANNOTATION_DT, read_sequence
 from reachconf.errors import ReachconfError
-from reachconf.io import atomic_write_text
+from reachconf.io import atomic_write
+from reachconf.sets import BoxDisk
 
 
 def _load_layers():
@@ -229,12 +230,6 @@ def scenarios(scene, half_length=6.0):
             "across_flow": (c - 0.6 * half_length * n, c + 0.6 * half_length * n)}  # fmt: skip
 
 
-def _rounded_box(c, b, r, n=72):
-    """Boundary of box(c, b) ⊕ disk(r)."""
-    a = np.linspace(0, 2 * np.pi, n)
-    return np.column_stack([c[0] + np.sign(np.cos(a)) * b + r * np.cos(a), c[1] + np.sign(np.sin(a)) * b + r * np.sin(a)])
-
-
 def plot_run(scene, res, zones, out):
     """One run of online verification: path, entry zones and, at the moment the robot passes closest
     to a pedestrian at speed, the reach tube of its fail-safe maneuver (reachconf.reach on
@@ -276,10 +271,10 @@ def plot_run(scene, res, zones, out):
     for i in range(p.shape[0]):
         ax.add_patch(plt.Circle(p[i], R_PED, color="k" if age[i] == 0 else "0.6"))
         tt = t_stop + age[i]
-        B = _rounded_box(p[i], P_UNC, V_PED * tt + R_PED)
+        B = BoxDisk(p[i], P_UNC, V_PED * tt + R_PED).boundary()
         ax.plot(B[:, 0], B[:, 1], color="C3", lw=0.6, alpha=0.6)
         if not np.isnan(vel[i, 0]):
-            B = _rounded_box(p[i] + vel[i] * tt, P_UNC + V_UNC * tt, 0.5 * A_PED * tt**2 + R_PED)
+            B = BoxDisk(p[i] + vel[i] * tt, P_UNC + V_UNC * tt, 0.5 * A_PED * tt**2 + R_PED).boundary()
             ax.plot(B[:, 0], B[:, 1], color="C2", lw=1)
     ax.plot([], [], color="C3", lw=0.6, label="pedestrians: velocity-constrained set until standstill")
     ax.plot([], [], color="C2", lw=1, label="pedestrians: acceleration-constrained set")
@@ -374,7 +369,7 @@ def main(argv=None):
         res["route"] = r["route"]
         plot_run(scene, res, zones, out)
     result = dict(table, seconds=time.perf_counter() - t0)
-    atomic_write_text(out / "robot.json", json.dumps(result, indent=2))
+    atomic_write(out / "robot.json", json.dumps(result, indent=2))
     lines = ["| layer | scenario | runs | at goal | mean time [s] | mean velocity [m/s] | collisions while moving |",
              "|---|---|---|---|---|---|---|"]  # fmt: skip
     for layer in LAYERS:
@@ -382,7 +377,7 @@ def main(argv=None):
             tm = f"{e['time_s']:.1f}" if e["time_s"] is not None else "-"
             vel = f"{e['velocity']:.2f}" if e["velocity"] is not None else "-"
             lines.append(f"| {layer} | {key} | {e['runs']} | {e['at_goal']} | {tm} | {vel} | {e['collisions']} |")
-    atomic_write_text(out / "robot.md", "\n".join(lines) + "\n")
+    atomic_write(out / "robot.md", "\n".join(lines) + "\n")
     print("\n".join(lines))
     print(f"({result['seconds']:.1f} s) wrote {out / 'robot.json'}")
     return 0

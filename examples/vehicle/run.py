@@ -3,7 +3,7 @@
     python examples/vehicle/run.py --out DIR [--quick] [--workers 2]
 
 0. the campaign: 4 maneuvers x 2 lateral accelerations x 5 repetitions from the
-   multi-body plant (``reachconf.campaign``), saved to DIR/campaign and reused;
+   multi-body plant (``reachconf.datasets.vehicle_campaign``), saved to DIR/campaign and reused;
 1. identification of the nominal bicycle parameters (J/m, b/L, c_f, c_r) by
    least squares (equation error on smoothed state derivatives);
 2. trace conformance: f_B with measured inputs (Table 3) and f_BX with
@@ -37,10 +37,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from identify import fit_actuators, fit_bicycle  # noqa: E402
 
 import reachconf as rc  # noqa: E402
-from reachconf.campaign.generate import make_campaign  # noqa: E402
-from reachconf.campaign.plant import NO_EFFECTS  # noqa: E402
+from reachconf.datasets.vehicle_campaign import NO_EFFECTS, PlantEffects, make_campaign  # noqa: E402
 from reachconf.conformance import SynthesisOptions, synthesize_W  # noqa: E402
-from reachconf.io import atomic_write_text, load_suite  # noqa: E402
+from reachconf.io import atomic_write, load_suite  # noqa: E402
 from reachconf.models import bicycle, bicycle_actuated, bicycle_closed_loop_actuated  # noqa: E402
 from reachconf.runner import process_pool  # noqa: E402
 
@@ -238,7 +237,7 @@ def main(argv=None):
         # Ctrl-C: keep what is finished (the steps' results so far) and say so
         timings["after_campaign"] = time.perf_counter() - t_after
         result.update(timings=timings, interrupted=True)
-        atomic_write_text(out / "vehicle.json", json.dumps(result, indent=2, default=float))
+        atomic_write(out / "vehicle.json", json.dumps(result, indent=2, default=float))
         done = [k for k in ("table3", "table4", "table6", "table8") if k in result]
         print(f"interrupted: wrote the finished parts ({', '.join(done) or 'none'}) to {out / 'vehicle.json'}")
         return 130
@@ -247,8 +246,8 @@ def main(argv=None):
             pool.shutdown(cancel_futures=True)
     timings["after_campaign"] = time.perf_counter() - t_after
     result["timings"] = timings
-    atomic_write_text(out / "vehicle.json", json.dumps(result, indent=2, default=float))
-    atomic_write_text(out / "vehicle.md", markdown(result))
+    atomic_write(out / "vehicle.json", json.dumps(result, indent=2, default=float))
+    atomic_write(out / "vehicle.md", markdown(result))
     print(f"timings: {json.dumps({k: round(v, 1) for k, v in timings.items()})}")
     print(f"wrote {out / 'vehicle.json'} and {out / 'vehicle.md'}")
     return 0
@@ -278,7 +277,6 @@ def _run(args, out, suite, plain, pool, timings, result):
     result["table4_fB_requested"] = None
     if args.quick or args.compare_requested:
         t0 = time.perf_counter()
-        from reachconf.campaign.plant import PlantEffects
 
         req = requested_inputs(suite, PlantEffects().delta_s_nominal)
         result["table4_fB_requested"] = trace_table(fB, req, box(V_TABLE3), (("ax", "delta"), fB.output_names), pool)

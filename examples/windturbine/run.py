@@ -51,12 +51,11 @@ import numpy as np
 
 import reachconf as rc
 from reachconf.conformance import TraceOptions, trace_disturbances
-from reachconf.conformance.trace import _outputs, state_estimate
 from reachconf.datasets.aero import fit_aero, read_performance_table
 from reachconf.datasets.openfast import read_output
-from reachconf.io import TestCase, atomic_write_text
+from reachconf.io import TestCase, atomic_write
+from reachconf.model import evaluate_outputs, simulate, state_estimate
 from reachconf.models.windturbine import CP_DEFAULT, CT_DEFAULT, wind_turbine
-from reachconf.simulate import simulate
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 #: name -> (file, start of the evaluated window [s], label)
@@ -124,7 +123,7 @@ def undisturbed(model, case, x0):
     """Figure 10: the model with w = 0 from the reference's first state; outputs and deviations."""
     with np.errstate(all="ignore"):
         X = simulate(model, x0, case.t, inputs=np.array(case.U), substeps=10)
-        Yh = _outputs(model, X, np.array(case.U))
+        Yh = evaluate_outputs(model, X, np.array(case.U))
         rng = np.ptp(case.Y, axis=0)
         err = np.abs(Yh - case.Y) / rng
     return Yh, {
@@ -183,7 +182,7 @@ def evaluate(model, case, meta):
     t0 = time.perf_counter()
     res = trace_disturbances(model, case, "perstep", V=V, options=TraceOptions(objective=objective))
     seconds = time.perf_counter() - t0
-    Yh = _outputs(model, res.X, np.array(case.U))  # res.X: the IVP re-simulation with the found w
+    Yh = evaluate_outputs(model, res.X, np.array(case.U))  # res.X: the IVP re-simulation with the found w
     dev = np.max(np.abs(Yh - case.Y), axis=0) / rng
     dev_value = np.max(np.abs(Yh - case.Y) / np.abs(case.Y), axis=0)  # the report's reading: of the reference value
     lo, hi = eq72_box(model, case)
@@ -329,7 +328,7 @@ def main(argv=None):
     except (rc.ReachconfError, OSError) as exc:
         print(f"windturbine: error: {exc}", file=sys.stderr)
         return 2
-    atomic_write_text(out / "windturbine.json", json.dumps(result, indent=2, allow_nan=False))
+    atomic_write(out / "windturbine.json", json.dumps(result, indent=2, allow_nan=False))
     print(f"wrote {out / 'windturbine.json'}")
     return 0
 

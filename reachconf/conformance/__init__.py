@@ -1,14 +1,32 @@
 """Conformance checking (source report sections 3–4).
 
-Trace conformance (Alg. 1 with the per-step fit or Alg. 2), reachset
-conformance (eqs. 42/43), the three-step synthesis of a minimal disturbance
-set (section 4.3.2) and the Pareto front of conformant boxes.
+* :mod:`reachconf.conformance.trace` — trace conformance (Alg. 1 with the
+  per-step fit of section 3.2.1 or Alg. 2);
+* :mod:`reachconf.conformance.optctrl` — Alg. 2's optimal-control QP and the
+  box SCP;
+* :mod:`reachconf.conformance.bounds` — smallest trace-conformant boxes
+  (synthesis step 2, Tables 3/4);
+* :mod:`reachconf.conformance.reachset` — reachset conformance (eqs. 42/43, 67);
+* :mod:`reachconf.conformance.synthesis` — the three-step synthesis of a
+  minimal disturbance set (section 4.3.2) and the merge per maneuver;
+* :mod:`reachconf.conformance.pareto` — the Pareto front of conformant boxes.
 """
 
-from reachconf.conformance.bounds import minimal_trace_bounds, minimize_box
+from reachconf.conformance.bounds import case_box, minimal_trace_bounds, minimize_box
+from reachconf.conformance.pareto import ParetoFront, pareto_front, plot_front_dict
+from reachconf.conformance.reachset import ReachsetResult, initial_set, reachset_conformance
+from reachconf.conformance.synthesis import (
+    CaseSynthesis,
+    SynthesisOptions,
+    SynthesisResult,
+    alpha_search,
+    reachset_check,
+    synthesize_W,
+)
 from reachconf.conformance.trace import (
     TraceOptions,
     TraceResult,
+    simulate_verdict,
     state_estimate,
     trace_conformance,
     trace_disturbances,
@@ -19,29 +37,21 @@ __all__ = [
     "TraceResult",
     "trace_conformance",
     "trace_disturbances",
+    "simulate_verdict",
     "state_estimate",
     "minimize_box",
     "minimal_trace_bounds",
+    "case_box",
+    "ReachsetResult",
+    "reachset_conformance",
+    "initial_set",
+    "SynthesisOptions",
+    "CaseSynthesis",
+    "SynthesisResult",
+    "synthesize_W",
+    "alpha_search",
+    "reachset_check",
+    "ParetoFront",
+    "pareto_front",
+    "plot_front_dict",
 ]
-
-try:  # written by the synthesis engineer; optional until it lands
-    from reachconf.conformance.reachset import *  # noqa: F401,F403
-    from reachconf.conformance.reachset import __all__ as _rs_all
-
-    __all__ += list(_rs_all)
-except ImportError:  # pragma: no cover
-    pass
-try:
-    from reachconf.conformance.synthesis import *  # noqa: F401,F403
-    from reachconf.conformance.synthesis import __all__ as _sy_all
-
-    __all__ += list(_sy_all)
-except ImportError:  # pragma: no cover
-    pass
-try:
-    from reachconf.conformance.pareto import *  # noqa: F401,F403
-    from reachconf.conformance.pareto import __all__ as _pa_all
-
-    __all__ += list(_pa_all)
-except ImportError:  # pragma: no cover
-    pass

@@ -15,20 +15,23 @@ import time
 
 import numpy as np
 
-from reachconf.conformance.optctrl import box_scp
+from types import SimpleNamespace
+
+from reachconf.conformance.optctrl import box_scp, optctrl_trace
 from reachconf.conformance.trace import (
     TraceOptions,
     TraceResult,
-    _as_box,
-    _verdict,
-    case_arrays,
+    simulate_verdict,
     trace_conformance,
     trace_disturbances,
 )
 from reachconf.errors import ConformanceError, OptionsError
-from reachconf.sets import Interval
+from reachconf.io.cases import case_arrays
+from reachconf.runner import run_cases
+from reachconf.sets.convert import as_box
+from reachconf.sets.core import Interval
 
-__all__ = ["minimize_box", "minimal_trace_bounds"]
+__all__ = ["minimize_box", "minimal_trace_bounds", "case_box"]
 
 
 def _inflate(lo, hi, rel, floor):
@@ -54,7 +57,8 @@ def minimize_box(model, case, V, W_start: Interval, start: TraceResult, options:
     """
     options = options or TraceOptions()
     t, U, Y = case_arrays(model, case)
-    V_lo, V_hi = _as_box(V, model.p, "V")
+    Vb = as_box(V, model.p, "V")
+    V_lo, V_hi = Vb.lo, Vb.hi
     vc, vr = 0.5 * (V_lo + V_hi), 0.5 * (V_hi - V_lo)
     # The volume itself is a degenerate objective (one zero-width channel makes it 0 whatever the others
     # are), so the SCP minimises the sum of the channel widths normalised by step 1's box: the
@@ -69,8 +73,8 @@ def minimize_box(model, case, V, W_start: Interval, start: TraceResult, options:
                                 start.W_trace.copy(), options, objective="sum", scale=scale)  # fmt: skip
         for attempt in range(4):
             blo, bhi = _inflate(lo, hi, 0.01 * attempt, floor)
-            res = _verdict(model, name, t, U, Y, x0, W, blo, bhi, V_lo, V_hi, options.substeps, "scp",
-                           time.perf_counter())  # fmt: skip
+            res = simulate_verdict(model, name, t, U, Y, x0, W, blo, bhi, V_lo, V_hi, options.substeps, "scp",
+                                   time.perf_counter())  # fmt: skip
             if res.conformant:
                 return Interval(blo, bhi), res
     res = trace_conformance(model, case, W_start, V, method="perstep", options=options)
@@ -117,10 +121,8 @@ def minimal_trace_bounds(model, suite, V=None, method: str = "perstep", solve_fo
         raise OptionsError("minimal_trace_bounds(solve_for='W') needs the measurement-error set V")
     if method not in ("perstep", "optctrl"):
         raise OptionsError(f"method must be 'perstep' or 'optctrl', got {method!r}")
-    from reachconf.runner import run_cases
-
     jobs = [(model, case, V, method, solve_for, options) for case in cases]
-    boxes = run_cases(_case_box, jobs, workers=workers, scheduler=scheduler, desc="minimal bounds", executor=executor)
+    boxes = run_cases(_case_box_job, jobs, workers=workers, scheduler=scheduler, desc="minimal bounds", executor=executor)
     lo = np.min([b[0] for b in boxes], axis=0)
     hi = np.max([b[1] for b in boxes], axis=0)
     if solve_for == "W" and method == "optctrl":
@@ -155,8 +157,33 @@ def minimal_trace_bounds(model, suite, V=None, method: str = "perstep", solve_fo
     )
 
 
-def _case_box(job):
-    model, case, V, method, solve_for, options = job
+def _case_box_job(job):
+    return case_box(*job)
+
+
+def case_box(model, case, V=None, method: str = "perstep", solve_for: str = "W", options: TraceOptions | None = None):
+    """The smallest box of one test case (the per-case part of :func:`minimal_trace_bounds`).
+
+    Parameters
+    ----------
+    model : Model
+    case : TestCase
+    V : Interval, optional
+        Measurement-error set (for ``solve_for="W"``).
+    method : {"perstep", "optctrl"}
+        "perstep": the hull of the per-step disturbance trace; "optctrl": the
+        box of smallest normalised widths by SCP (from the per-step trace).
+    solve_for : {"W", "V"}
+        "V": the smallest measurement-error box for ``W = {0}`` (SCP).
+    options : TraceOptions
+
+    Returns
+    -------
+    tuple
+        ``(lo, hi)``; for ``method="optctrl"`` and ``solve_for="W"``
+        ``(lo, hi, x0, W_trace)`` with the SCP's trace (Alg. 1's certificate).
+    """
+    options = options or TraceOptions()
     t, U, Y = case_arrays(model, case)
     if solve_for == "V":
         start = trace_disturbances(model, case, method="perstep", options=options) if model.q else None
@@ -170,7 +197,8 @@ def _case_box(job):
         res = trace_disturbances(model, case, method="perstep", options=options)
         return res.W_trace.min(axis=0), res.W_trace.max(axis=0)
     start = trace_disturbances(model, case, method="perstep", options=options)
-    V_lo, V_hi = _as_box(V, model.p, "V")
+    Vb = as_box(V, model.p, "V")
+    V_lo, V_hi = Vb.lo, Vb.hi
     vc, vr = 0.5 * (V_lo + V_hi), 0.5 * (V_hi - V_lo)
     scale = np.ptp(start.W_trace, axis=0)
     scale = np.where(scale > 0, scale, 1.0)
@@ -181,24 +209,19 @@ def _case_box(job):
 
 def _certify(model, case, found, box, V, options) -> bool:
     """Re-simulate a case's SCP trace (eqs. 22-24 with ``box`` and ``V``): the Alg. 1 verdict for that trace."""
-    from reachconf.conformance.trace import _verdict
-
     _, _, x0, W = found
     t, U, Y = case_arrays(model, case)
-    V_lo, V_hi = _as_box(V, model.p, "V")
-    res = _verdict(model, case.name, t, U, Y, x0, W, box.lo, box.hi, V_lo, V_hi, options.substeps, "scp",
-                   time.perf_counter())  # fmt: skip
+    Vb = as_box(V, model.p, "V")
+    V_lo, V_hi = Vb.lo, Vb.hi
+    res = simulate_verdict(model, case.name, t, U, Y, x0, W, box.lo, box.hi, V_lo, V_hi, options.substeps, "scp",
+                           time.perf_counter())  # fmt: skip
     if res.conformant:
         return True
     # the SCP trace is consistent with the linearised dynamics only: let Alg. 2 correct it, starting from it
-    from types import SimpleNamespace
-
-    from reachconf.conformance.optctrl import optctrl_trace
-
     x1, W1, _ = optctrl_trace(model, t, U, Y, box.lo, box.hi, V_lo, V_hi, options, case,
                               start=SimpleNamespace(x0=x0, W_trace=W))  # fmt: skip
-    return _verdict(model, case.name, t, U, Y, x1, W1, box.lo, box.hi, V_lo, V_hi, options.substeps, "optctrl",
-                    time.perf_counter()).conformant  # fmt: skip
+    return simulate_verdict(model, case.name, t, U, Y, x1, W1, box.lo, box.hi, V_lo, V_hi, options.substeps,
+                            "optctrl", time.perf_counter()).conformant  # fmt: skip
 
 
 def _verify(job):

@@ -29,6 +29,10 @@ import numpy as np
 import scipy.sparse as sps
 
 from reachconf.errors import SolverError
+from reachconf.model.outputs import evaluate_outputs, output_index_of_states, state_estimate
+from reachconf.model.simulate import simulate
+from reachconf_kernels.integrate import rk4_one_step_each
+from reachconf_kernels.tracefit import discrete_linearization
 
 __all__ = ["optctrl_trace", "box_scp", "fine_grid"]
 
@@ -47,9 +51,6 @@ class _Linearised:
     """Sparse pieces of the linearised problem around ``(X, W)`` on the grid ``tf``."""
 
     def __init__(self, model, tf, Uf, X, W):
-        from reachconf_kernels.integrate import rk4_one_step_each
-        from reachconf_kernels.tracefit import discrete_linearization
-
         comp = model.compiled()
         pv = model.param_vector
         n, q = model.n, model.q
@@ -76,9 +77,7 @@ class _Linearised:
 
 def _output_rows(model, X, Uf, idx, Y):
     """Sparse map dx -> C_k dx_k at the sample indices, and the current residual ``Y - h(X)``."""
-    from reachconf.conformance.trace import _outputs
-
-    Yh, Jh = _outputs(model, X[idx], Uf[idx], jacobian=True)
+    Yh, Jh = evaluate_outputs(model, X[idx], Uf[idx], jacobian=True)
     K, p, n = Jh.shape
     kk, ii, bb = np.meshgrid(np.arange(K), np.arange(p), np.arange(n), indexing="ij")
     rows = (kk * p + ii).ravel()
@@ -88,7 +87,7 @@ def _output_rows(model, X, Uf, idx, Y):
 
 
 def _solve(problem, solver):
-    import cvxpy as cp
+    import cvxpy as cp  # imported when a problem is solved: its import takes about a second
 
     tried = [solver] if solver else ["CLARABEL", "OSQP"]
     last = None
@@ -105,23 +104,14 @@ def _solve(problem, solver):
     raise SolverError(f"the QP solver failed ({last})")
 
 
-def _simulate(model, x0, tf, Uf, W):
-    from reachconf_kernels.integrate import rk4_trace
-
-    Wfull = np.ascontiguousarray(np.vstack([W, W[-1:]])) if W.shape[0] else np.zeros((tf.size, 0))
-    return rk4_trace(model.compiled().f, x0, Uf, Wfull, tf, model.param_vector, 10)
-
-
 def _scales(model, Y, X):
     """State scales for the trust region: the spread of the simulated and of the measured states.
 
     The first simulation (from the initial estimate with zero disturbance) may
     barely move, so the measured states are taken into account too.
     """
-    from reachconf.conformance.trace import _output_states
-
     sx = np.maximum(np.ptp(X, axis=0), np.max(np.abs(X), axis=0))
-    direct = _output_states(model)
+    direct = output_index_of_states(model)
     if direct is not None:
         Ys = Y[:, direct]
         sx = np.maximum(sx, np.maximum(np.ptp(Ys, axis=0), np.max(np.abs(Ys), axis=0)))
@@ -134,8 +124,6 @@ def optctrl_trace(model, t, U, Y, W_lo, W_hi, V_lo, V_hi, options, case, start=N
     Returns ``(x0, W_trace, message)``; ``W_trace`` has ``(K-1) r`` rows.
     """
     import cvxpy as cp
-
-    from reachconf.conformance.trace import state_estimate
 
     r = int(options.subdivision)
     tf, Uf, idx = fine_grid(t, U, r)
@@ -151,7 +139,7 @@ def optctrl_trace(model, t, U, Y, W_lo, W_hi, V_lo, V_hi, options, case, start=N
             x0 = np.zeros(n)
         W = np.zeros((J, q))
     W = np.clip(W, np.where(np.isfinite(W_lo), W_lo, -np.inf), np.where(np.isfinite(W_hi), W_hi, np.inf))
-    X = _simulate(model, x0, tf, Uf, W)
+    X = simulate(model, x0, tf, Uf, W, substeps=10, check=False)
     sx = _scales(model, Y, X)
     wrad = 0.5 * (W_hi - W_lo)
     sw = np.where(np.isfinite(wrad) & (wrad > 0), wrad, 1.0)
@@ -187,7 +175,7 @@ def optctrl_trace(model, t, U, Y, W_lo, W_hi, V_lo, V_hi, options, case, start=N
         W = W + np.asarray(dw.value).reshape(J, q)
         W = np.clip(W, np.where(np.isfinite(W_lo), W_lo, -np.inf), np.where(np.isfinite(W_hi), W_hi, np.inf))
         x0 = X_tilde[0]
-        X = _simulate(model, x0, tf, Uf, W)
+        X = simulate(model, x0, tf, Uf, W, substeps=10, check=False)
         e = np.max(np.abs(X - X_tilde) / sx)
         if e <= options.epsilon:
             message = f"Alg. 2 converged in {it + 1} iterations"
@@ -225,7 +213,7 @@ def box_scp(model, t, U, Y, V_lo, V_hi, x0, W, options, objective="volume", W_fi
     J = tf.size - 1
     if r > 1 and W.shape[0] == t.size - 1:  # a start trace on the sample grid: hold it over the sub-steps
         W = np.repeat(W, r, axis=0)
-    X = _simulate(model, x0, tf, Uf, W)
+    X = simulate(model, x0, tf, Uf, W, substeps=10, check=False)
     sx = _scales(model, Y, X)
     dim = p if V_free else q
     if V_free:
@@ -277,7 +265,7 @@ def box_scp(model, t, U, Y, V_lo, V_hi, x0, W, options, objective="volume", W_fi
         if q:
             W = W + np.asarray(dw.value).reshape(J, q)
         x0 = X_tilde[0]
-        X = _simulate(model, x0, tf, Uf, W)
+        X = simulate(model, x0, tf, Uf, W, substeps=10, check=False)
         new_lo, new_hi = np.asarray(lo.value), np.asarray(hi.value)
         change = np.max(np.abs(new_hi - new_lo - (hi_prev - lo_prev)) / width0)
         lo_prev, hi_prev = new_lo, new_hi

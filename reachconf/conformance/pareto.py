@@ -14,11 +14,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reachconf.conformance.synthesis import _check_job, SynthesisOptions
-from reachconf.conformance.trace import _as_box, trace_conformance
+from reachconf.conformance.synthesis import SynthesisOptions, reachset_check
+from reachconf.conformance.trace import trace_conformance
 from reachconf.errors import ConformanceError, OptionsError
+from reachconf.io.atomic import atomic_write
 from reachconf.runner import run_cases
-from reachconf.sets import Interval
+from reachconf.sets.convert import as_box
+from reachconf.sets.core import Interval
 
 __all__ = ["ParetoFront", "pareto_front", "plot_front_dict"]
 
@@ -58,9 +60,7 @@ class ParetoFront:
     def to_json(self, path=None) -> str:
         text = json.dumps(self.to_dict(), indent=2, default=float)
         if path is not None:
-            from reachconf.io import atomic_write_text
-
-            atomic_write_text(path, text)
+            atomic_write(path, text)
         return text
 
     def plot(self, ax=None):
@@ -87,6 +87,11 @@ def plot_front_dict(d, ax=None):
     ax.legend(fontsize=6)
     fig.tight_layout()
     return fig
+
+
+def _reachset_job(job):
+    model, case, W, V, options = job
+    return reachset_check(model, case, W, V, options).conformant
 
 
 def _trace_job(job):
@@ -121,12 +126,13 @@ def pareto_front(model, suite, V, W_start, check: str = "reachset", iterations: 
     options = options or SynthesisOptions()
     if check not in ("reachset", "trace"):
         raise OptionsError(f"check must be 'reachset' or 'trace', got {check!r}")
-    V_lo, V_hi = _as_box(V, model.p, "V")
-    Vbox = Interval(V_lo, V_hi)
-    W_start = Interval(*_as_box(W_start, model.q, "W_start"))
+    Vb = as_box(V, model.p, "V")
+    Vbox = Interval(Vb.lo, Vb.hi)
+    Wb = as_box(W_start, model.q, "W_start")
+    W_start = Interval(Wb.lo, Wb.hi)
     cases = list(suite)
     q = model.q
-    job_fn = _check_job if check == "reachset" else _trace_job
+    job_fn = _reachset_job if check == "reachset" else _trace_job
 
     def ok(W):
         jobs = [(model, case, W, Vbox, options) for case in cases]

@@ -6,10 +6,19 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import linprog
 
-from reachconf.conformance.trace import _as_box, _output_states, case_arrays, state_estimate
 from reachconf.errors import ConformanceError, ReachError
-from reachconf.sets import Interval, Zonotope
+from reachconf.io.cases import case_arrays
+from reachconf.model.outputs import affine_output, output_enclosure, output_index_of_states, state_estimate
+from reachconf.reach import ReachStopped, reach_run
+from reachconf.reach_options import ReachOptions
+from reachconf.sets.containment import contains_points_lp
+from reachconf.sets.convert import as_box
+from reachconf.sets.core import Interval, Zonotope
+from reachconf.tube import ReachTube
+from reachconf_kernels.containment import contains_mapped_sequence
+from reachconf_kernels.zonotope import from_interval
 
 __all__ = ["ReachsetResult", "reachset_conformance", "initial_set"]
 
@@ -57,13 +66,12 @@ def initial_set(model, case, V) -> Interval | Zonotope:
     ``C^+ (y_1 - D u_1 - e - V)``.  Otherwise pass ``X0`` explicitly.
     """
     t, U, Y = case_arrays(model, case)
-    V_lo, V_hi = _as_box(V, model.p, "V")
-    direct = _output_states(model)
+    Vb = as_box(V, model.p, "V")
+    V_lo, V_hi = Vb.lo, Vb.hi
+    direct = output_index_of_states(model)
     if direct is not None:
         x1 = Y[0, direct]
         return Interval(x1 + V_lo[direct], x1 + V_hi[direct])
-    from reachconf.output_map import affine_output
-
     aff = affine_output(model)
     if aff is not None and np.linalg.matrix_rank(aff[0]) == model.n:
         C, D, e = aff
@@ -78,8 +86,6 @@ def initial_set(model, case, V) -> Interval | Zonotope:
 
 def _distance(S: Zonotope, y: np.ndarray) -> float:
     """Infinity-norm distance from ``y`` to the zonotope (an LP)."""
-    from scipy.optimize import linprog
-
     c, G = S.center, S.generators
     n, m = G.shape
     # min s  s.t. |G b - (y - c)| <= s, |b| <= 1
@@ -128,17 +134,14 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
         along the reach by one compiled kernel (the same certified test as
         :meth:`Zonotope.contains`); otherwise set by set.
     """
-    from reachconf.output_map import affine_output
-    from reachconf.reach import ReachOptions, ReachStopped, _reach_run
-    from reachconf.tube import ReachTube
-
     t0 = time.perf_counter()
     t, U, Y = case_arrays(model, case)
     name = getattr(case, "name", "case")
     if X0 is None:
         X0 = initial_set(model, case, V)
     options = options or ReachOptions()
-    V_lo, V_hi = _as_box(V, model.p, "V")
+    Vb = as_box(V, model.p, "V")
+    V_lo, V_hi = Vb.lo, Vb.hi
     Vset = Interval(V_lo, V_hi)
     aff = affine_output(model)
     stop = bool(stop_at_first_violation and not keep_tube and not violation_distance)
@@ -149,7 +152,7 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
     try:
         if checker is not None and checker.stopped:
             raise ReachStopped(0)
-        run = _reach_run(model, X0, t - t[0], inputs=inputs, W=W, options=options,
+        run = reach_run(model, X0, t - t[0], inputs=inputs, W=W, options=options,
                          monitor=checker)  # fmt: skip
     except ReachError as exc:
         return ReachsetResult(name, False, float(t[0] + (exc.time or 0.0)), float("inf"), np.zeros(t.size, bool),
@@ -161,9 +164,7 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
                               time.perf_counter() - t0, "", {})  # fmt: skip
     tube = None
     if keep_tube or checker is None or not run.monitored or violation_distance:
-        tube = ReachTube.from_branches(model=model, samples=run.samples, step_offsets=run.step_offsets,
-                                       t_start=run.t_start, dts=run.dts, X0=run.X0, branches=run.branches,
-                                       options=run.options, W=run.W, splits=run.splits, seconds=run.seconds)  # fmt: skip
+        tube = ReachTube.from_run(run, model)
     if checker is not None and run.monitored:
         inside = checker.status == 1
     else:
@@ -172,8 +173,6 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
     worst = float("nan") if bad.size and not violation_distance else 0.0
     violations = {}
     if bad.size and violation_distance:
-        from reachconf.output_map import output_enclosure
-
         for k in bad:
             S = output_enclosure(model, tube.at(t[k] - t[0]), U[k] if model.m else None) + Vset.to_zonotope()
             dist = _distance(S, Y[k])
@@ -185,11 +184,9 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
 
 
 class _SequenceChecker:
-    """Monitor of :func:`reachconf.reach._reach_run`: eq. 43 for each chunk of time-point sets (compiled)."""
+    """Monitor of :func:`reachconf.reach.reach_run`: eq. 43 for each chunk of time-point sets (compiled)."""
 
     def __init__(self, aff, U, Y, V_lo, V_hi, stop):
-        from reachconf_kernels.zonotope import from_interval
-
         C, D, e = aff
         cv, Gv = from_interval(np.ascontiguousarray(V_lo, dtype=float), np.ascontiguousarray(V_hi, dtype=float))
         self.C = np.ascontiguousarray(C, dtype=float)
@@ -201,9 +198,6 @@ class _SequenceChecker:
         self.stopped = False
 
     def _decide(self, js, c, G, ng):
-        from reachconf.containment import contains_points_lp
-        from reachconf_kernels.containment import contains_mapped_sequence
-
         st = contains_mapped_sequence(np.ascontiguousarray(c), np.ascontiguousarray(G), np.ascontiguousarray(ng),
                                       self.C, self.off[js], self.v_rad, self.Y[js], 1e-9, self.stop)  # fmt: skip
         for i in np.nonzero(st == -1)[0]:  # no certificate: the reference LP

@@ -17,18 +17,23 @@ from __future__ import annotations
 
 import json
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from reachconf.conformance.bounds import minimize_box
 from reachconf.conformance.reachset import reachset_conformance
-from reachconf.conformance.trace import TraceOptions, _as_box, trace_disturbances
+from reachconf.conformance.trace import TraceOptions, trace_disturbances
 from reachconf.errors import OptionsError
+from reachconf.io.atomic import atomic_write
+from reachconf.reach_options import ReachOptions
 from reachconf.runner import process_pool, run_cases
-from reachconf.sets import Interval
+from reachconf.sets.convert import as_box
+from reachconf.sets.core import Interval
 
-__all__ = ["SynthesisOptions", "CaseSynthesis", "SynthesisResult", "synthesize_W", "alpha_search"]
+__all__ = ["SynthesisOptions", "CaseSynthesis", "SynthesisResult", "synthesize_W", "alpha_search",
+           "reachset_check"]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -88,8 +93,6 @@ class SynthesisOptions:
             raise OptionsError(f"merge_iterations must be a positive integer or None, got {mi!r}")
         if not (np.isfinite(self.alpha_max) and self.alpha_max >= 1.0):
             raise OptionsError(f"alpha_max must be a finite number >= 1, got {self.alpha_max!r}")
-        from reachconf.reach import ReachOptions
-
         for name in ("reach", "reach_fallback"):
             value = getattr(self, name)
             if value is not None and not isinstance(value, ReachOptions):
@@ -162,9 +165,7 @@ class SynthesisResult:
         """JSON text of the result; written atomically to ``path`` if given."""
         text = json.dumps(self.to_dict(), indent=indent, default=float)
         if path is not None:
-            from reachconf.io import atomic_write_text
-
-            atomic_write_text(path, text)
+            atomic_write(path, text)
         return text
 
     def table(self, digits: int = 4) -> str:
@@ -217,7 +218,23 @@ def alpha_search(check, W: Interval, iterations: int = 10, alpha_max: float = 1.
     return hi, _scaled(c, g, hi), True, trials
 
 
-def _reach_check(model, case, W, V, options):
+def reachset_check(model, case, W, V, options):
+    """The reachset-conformance check of the α-searches: eq. 43 from the initial set of eq. 67.
+
+    Stops at the first violation; when the reach with ``options.reach``
+    fails (the set explodes), tries ``options.reach_fallback`` if given.
+
+    Parameters
+    ----------
+    model : Model
+    case : TestCase
+    W, V : Interval
+    options : SynthesisOptions
+
+    Returns
+    -------
+    ReachsetResult
+    """
     res = reachset_conformance(model, case, W, V, options=options.reach, keep_tube=False,
                                violation_distance=False, stop_at_first_violation=True)  # fmt: skip
     if res.message and options.reach_fallback is not None:  # the reach itself failed: try the precise one
@@ -227,7 +244,7 @@ def _reach_check(model, case, W, V, options):
 
 
 def _reach_ok(model, case, W, V, options) -> bool:
-    return _reach_check(model, case, W, V, options).conformant
+    return reachset_check(model, case, W, V, options).conformant
 
 
 def _synth_case(job) -> CaseSynthesis:
@@ -252,7 +269,7 @@ def _synth_case(job) -> CaseSynthesis:
     at_one = {}  # the check of α = 1 (W_opt itself), for the message if nothing passes
 
     def check(W, scale_of=None):
-        res = _reach_check(model, case, W, V, options)
+        res = reachset_check(model, case, W, V, options)
         if scale_of is not None and np.allclose(W.lo, scale_of.lo) and np.allclose(W.hi, scale_of.hi):
             at_one.setdefault("res", res)
         return res.conformant
@@ -324,8 +341,8 @@ def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, worke
     """
     options = options or SynthesisOptions()
     t_all = time.perf_counter()
-    V_lo, V_hi = _as_box(V, model.p, "V")
-    Vbox = Interval(V_lo, V_hi)
+    Vb = as_box(V, model.p, "V")
+    Vbox = Interval(Vb.lo, Vb.hi)
     cases = list(suite)
     if executor is not None:
         return _synthesize(model, cases, Vbox, options, executor, scheduler, progress, t_all)
@@ -353,8 +370,6 @@ def _synthesize(model, cases, Vbox, options, pool, scheduler, progress, t_all):
             by_group.setdefault(case.group, []).append((case, cs))
         if pool is not None and scheduler is None and len(by_group) > 1:
             # every group's α-search in its own thread, all feeding the one process pool
-            from concurrent.futures import ThreadPoolExecutor
-
             batch = max(1, getattr(pool, "_max_workers", 1))
 
             def run_batch(batch_jobs):

@@ -21,14 +21,21 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from reachconf.errors import ConformanceError, DataError, OptionsError, SolverError
-from reachconf.sets import Interval, Zonotope
+from reachconf.conformance.optctrl import optctrl_trace
+from reachconf.errors import ConformanceError, OptionsError
+from reachconf.io.cases import case_arrays
+from reachconf.model.outputs import affine_output, evaluate_outputs, output_index_of_states, state_estimate
+from reachconf.model.simulate import simulate
+from reachconf.sets.convert import as_box
+from reachconf.sets.core import Interval
+from reachconf_kernels.tracefit import perstep_fit
 
 __all__ = [
     "TraceOptions",
     "TraceResult",
     "trace_conformance",
     "trace_disturbances",
+    "simulate_verdict",
     "state_estimate",
     "case_arrays",
 ]
@@ -186,88 +193,6 @@ def _box_lists(A):
 # ---------------------------------------------------------------------------
 # data plumbing
 # ---------------------------------------------------------------------------
-def case_arrays(model, case):
-    """``(t, U, Y)`` of a test case in the model's input/output order (DataError naming what is missing)."""
-    names_u = tuple(getattr(case, "input_names", ()))
-    names_y = tuple(getattr(case, "output_names", ()))
-    if names_u == model.input_names and names_y == model.output_names:
-        t, U, Y = case.t, case.U, case.Y
-    else:
-        try:
-            sel = case.select(model.input_names, model.output_names)
-        except DataError as exc:
-            raise DataError(f"test case {case.name!r} does not fit model {model.name!r}: {exc}") from None
-        t, U, Y = sel.t, sel.U, sel.Y
-    # writeable contiguous copies: the compiled kernels take mutable arrays
-    t = np.array(t, dtype=float)
-    U = np.array(np.asarray(U, dtype=float).reshape(t.size, model.m), order="C")
-    Y = np.array(np.asarray(Y, dtype=float).reshape(t.size, model.p), order="C")
-    return t, U, Y
-
-
-def _as_box(S, dim: int, name: str) -> tuple[np.ndarray, np.ndarray]:
-    if S is None:
-        return np.zeros(dim), np.zeros(dim)
-    if isinstance(S, Zonotope):
-        S = S.interval()
-    if not isinstance(S, Interval):
-        raise OptionsError(f"{name} must be a reachconf Interval or Zonotope, got {type(S).__name__}")
-    if S.dim != dim:
-        raise OptionsError(f"{name} has dimension {S.dim}, the model needs {dim}")
-    return np.asarray(S.lo, float), np.asarray(S.hi, float)
-
-
-def _output_states(model):
-    """Index of each state among the outputs if every state is output directly (y = x-part), else None."""
-    import sympy as sp
-
-    idx = []
-    for s in model.z_symbols[: model.n]:
-        hit = [i for i, e in enumerate(model.h_expr) if isinstance(e, sp.Symbol) and e == s]
-        if not hit:
-            return None
-        idx.append(hit[0])
-    return idx
-
-
-def state_estimate(model, case) -> np.ndarray:
-    """States at the sample times from the measured outputs (``h`` inverted), shape (K, n).
-
-    If every state is an output, it is read off directly.  Otherwise ``h(x, u) = y``
-    is solved for ``x`` at every sample by Gauss–Newton (all samples at once);
-    this needs ``h`` to determine the state (at least ``n`` independent outputs).
-    """
-    t, U, Y = case_arrays(model, case)
-    direct = _output_states(model)
-    if direct is not None:
-        return np.ascontiguousarray(Y[:, direct])
-    if model.p < model.n:
-        raise ConformanceError(
-            f"model {model.name!r} has {model.p} outputs for {model.n} states: the state cannot be read from the "
-            f"measurements; use method='optctrl'"
-        )
-    from reachconf.output_map import affine_output
-
-    aff = affine_output(model)
-    if aff is not None and np.linalg.matrix_rank(aff[0]) == model.n:
-        C, D, e = aff
-        rhs = Y - U @ D.T - e
-        return np.ascontiguousarray(np.linalg.lstsq(C, rhs.T, rcond=None)[0].T)
-    # nonlinear h: Gauss-Newton on all samples at once
-    comp = model.compiled()
-    pv = model.param_vector
-    K, n = t.size, model.n
-    X = np.zeros((K, n))
-    for _ in range(30):
-        R, JJ = _outputs(model, X, U, jacobian=True)
-        R = R - Y
-        steps = np.stack([np.linalg.lstsq(JJ[k], -R[k], rcond=None)[0] for k in range(K)])
-        X += steps
-        if np.max(np.abs(steps)) <= 1e-12 * (1 + np.max(np.abs(X))):
-            return X
-    raise ConformanceError(f"model {model.name!r}: could not invert the output map h to estimate the states")
-
-
 def _weights(model, Yx, V_lo, V_hi, objective):
     """Weights of the per-step residual components (per step, per state)."""
     K, n = Yx.shape
@@ -275,7 +200,7 @@ def _weights(model, Yx, V_lo, V_hi, objective):
         if np.any(Yx[1:] == 0):
             raise ConformanceError("objective='relative' (eq. 27) needs measurements that are never zero")
         return 1.0 / Yx[1:] ** 2
-    direct = _output_states(model)
+    direct = output_index_of_states(model)
     scale = np.ptp(Yx, axis=0)
     if direct is not None:
         vrad = 0.5 * (V_hi - V_lo)[direct]
@@ -287,41 +212,42 @@ def _weights(model, Yx, V_lo, V_hi, objective):
 # ---------------------------------------------------------------------------
 # IVP and verdict (Alg. 1, lines 3-5)
 # ---------------------------------------------------------------------------
-def _simulate_with_error(model, x0, U, Wt, t, substeps):
-    """RK4 trace and an estimate of its integration error (step doubling, Richardson)."""
-    from reachconf_kernels.integrate import rk4_trace
+def simulate_verdict(model, case_name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, substeps, method, t0,
+                     message="") -> TraceResult:  # fmt: skip
+    """Alg. 1, lines 3-5: simulate a candidate trace and judge it against the bounds (eqs. 22-24).
 
-    comp = model.compiled()
-    pv = model.param_vector
-    Wfull = np.vstack([Wt, Wt[-1:]]) if Wt.shape[0] == t.size - 1 else Wt
-    Ufull = U
-    X1 = rk4_trace(comp.f, x0, Ufull, np.ascontiguousarray(Wfull), t, pv, int(substeps))
-    X2 = rk4_trace(comp.f, x0, Ufull, np.ascontiguousarray(Wfull), t, pv, int(2 * substeps))
-    err = np.abs(X2 - X1) * (16.0 / 15.0) + 1e-12 * (1 + np.abs(X2))
-    return X2, err
+    The model is simulated from ``x0`` with the disturbance trace ``Wt`` (RK4 at
+    ``substeps`` and twice that; the difference is the integration-error
+    estimate), the measurement errors ``Y - h(X, U)`` are computed from the
+    simulated states, and every disturbance and output margin must be
+    non-negative, the outputs' after subtracting the integration error.  The
+    verdict rests on this simulation only, so it is never wrongly "conformant".
 
+    Parameters
+    ----------
+    model : Model
+    case_name : str
+    t, U, Y : ndarray
+        The case's arrays (``TestCase.case_arrays``).
+    x0 : ndarray (n,)
+    Wt : ndarray (K-1, q)
+        Candidate disturbance trace.
+    W_lo, W_hi, V_lo, V_hi : ndarray
+        The boxes (``-inf``/``inf`` for unbounded).
+    substeps : int
+    method : str
+        Recorded in the result.
+    t0 : float
+        ``time.perf_counter()`` at the start (for ``seconds``).
+    message : str
 
-def _outputs(model, X, U, jacobian=False):
-    """``h(X[k], U[k])`` for all samples (and the state Jacobians ``dh/dx`` if asked)."""
-    from reachconf.output_map import affine_output
-    from reachconf_kernels.integrate import eval_outputs
-
-    aff = affine_output(model)
-    if aff is not None and not jacobian:
-        C, D, e = aff
-        return X @ C.T + U @ D.T + e
-    comp = model.compiled()
-    Yh, J = eval_outputs(comp.h, comp.jac_h, np.ascontiguousarray(X), np.ascontiguousarray(U), model.param_vector,
-                         model.p, model.q)  # fmt: skip
-    return (Yh, np.ascontiguousarray(J[:, :, : model.n])) if jacobian else Yh
-
-
-def _verdict(model, case_name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, substeps, method, t0, message=""):
-    X, xerr = _simulate_with_error(model, x0, U, Wt, t, substeps)
-    Vt = Y - _outputs(model, X, U)
+    Returns
+    -------
+    TraceResult
+    """
+    X, xerr = simulate(model, x0, t, U, Wt, substeps, error_estimate=True, check=False)
+    Vt = Y - evaluate_outputs(model, X, U)
     # integration error mapped to the outputs (first order, through |dh/dx|)
-    from reachconf.output_map import affine_output
-
     aff = affine_output(model)
     if aff is not None:
         yerr = xerr @ np.abs(aff[0]).T
@@ -350,8 +276,6 @@ def _verdict(model, case_name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, substeps
 # DISTURBANCETRACE, section 3.2.1
 # ---------------------------------------------------------------------------
 def _perstep(model, t, U, Y, V_lo, V_hi, options, case):
-    from reachconf_kernels.tracefit import perstep_fit
-
     Yx = state_estimate(model, case)
     anchor = options.anchor
     if anchor == "auto":
@@ -402,15 +326,15 @@ def trace_conformance(model, case, W, V, method: str = "perstep", options: Trace
     if _unbounded:
         W_lo, W_hi = np.full(model.q, -np.inf), np.full(model.q, np.inf)
     else:
-        W_lo, W_hi = _as_box(W, model.q, "W")
-    V_lo, V_hi = _as_box(V, model.p, "V")
+        Wb = as_box(W, model.q, "W")
+        W_lo, W_hi = Wb.lo, Wb.hi
+    Vb = as_box(V, model.p, "V")
+    V_lo, V_hi = Vb.lo, Vb.hi
     name = getattr(case, "name", "case")
     if method == "perstep":
         x0, Wt, anchor = _perstep(model, t, U, Y, V_lo, V_hi, options, case)
-        return _verdict(model, name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, options.substeps,
-                        f"perstep ({anchor})", t0)  # fmt: skip
-    from reachconf.conformance.optctrl import optctrl_trace
-
+        return simulate_verdict(model, name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, options.substeps,
+                                f"perstep ({anchor})", t0)  # fmt: skip
     x0, Wt, message = optctrl_trace(model, t, U, Y, W_lo, W_hi, V_lo, V_hi, options, case)
-    return _verdict(model, name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, options.substeps, "optctrl", t0,
-                    message)  # fmt: skip
+    return simulate_verdict(model, name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, options.substeps, "optctrl", t0,
+                            message)  # fmt: skip

@@ -37,6 +37,8 @@ import numpy as np
 import sympy as sp
 
 from reachconf.errors import ModelError, OptionsError
+from reachconf.model.core import Model
+from reachconf_kernels.signals import first_order_lag, transport_delay
 
 __all__ = ["Effect", "EFFECTS", "register_effect", "effect_param_name"]
 
@@ -129,8 +131,6 @@ def effect_param_name(effect: str, param: str, target: str) -> str:
 
 # --------------------------------------------------------------------------- model rewriting
 def _rebuild(base, f_expr, h_expr=None, states=None, params=None, name=None):
-    from reachconf.model import Model
-
     states = tuple(states or base.state_names)
     new_params = dict(base.params)
     new_params.update(params or {})
@@ -204,14 +204,10 @@ def _drag_model(base, target, names):
 
 # --------------------------------------------------------------------------- the library
 def _lag(t, u, th):
-    from reachconf_kernels.signals import first_order_lag
-
     return first_order_lag(t, u, max(th[0], 1e-6))
 
 
 def _delay(t, u, th):
-    from reachconf_kernels.signals import transport_delay
-
     return transport_delay(t, u, max(th[0], 0.0))
 
 

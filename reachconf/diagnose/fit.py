@@ -18,8 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reachconf.conformance.trace import _output_states, _outputs, case_arrays
+from reachconf.diagnose.effects import effect_param_name
 from reachconf.errors import ConformanceError, OptionsError
+from reachconf.io.cases import TestCase, case_arrays
+from reachconf.model.outputs import evaluate_outputs, output_index_of_states, state_estimate, state_index_of_outputs
+from reachconf_kernels.integrate import rk4_windows
 
 __all__ = ["DiagnoseOptions", "noise_level", "PreparedCase", "prepare", "Candidate", "fit_candidate", "transformed_case"]
 
@@ -49,8 +52,9 @@ class DiagnoseOptions:
     box_segment : float, default 2.0
         The held-out cases are cut into segments of this length (s) for the
         minimal-box scores (the box is the hull of the segments' boxes).
-    min_shrink : float, default 1.5
-        Smallest volume shrink of the minimal box for naming an effect.
+    min_shrink : float, default 1.0
+        Smallest volume shrink of the minimal box for naming an effect (1:
+        any shrink; the held-out prediction gain ``min_improvement`` decides).
     min_improvement : float, default 0.3
         ... and smallest relative reduction of the held-out prediction cost.
     tie : float, default 0.1
@@ -177,8 +181,6 @@ def transformed_signals(model, cand: Candidate, theta_eff: dict, t, U, Y):
 
 def transformed_case(model, case, cand: Candidate, theta_eff: dict):
     """A copy of ``case`` as seen by the model with the candidate's input/output effects."""
-    from reachconf.io import TestCase
-
     t, U, Y = case_arrays(model, case)
     U2, Y2 = transformed_signals(model, cand, theta_eff, t, U, Y)
     return TestCase(case.name, getattr(case, "group", "default"), t, U2, Y2, model.input_names, model.output_names)
@@ -187,31 +189,16 @@ def transformed_case(model, case, cand: Candidate, theta_eff: dict):
 def _states(model, Ys, U, direct):
     if direct is not None:
         return np.ascontiguousarray(Ys[:, direct])
-    from reachconf.conformance.trace import state_estimate
-    from reachconf.io import TestCase
-
     t = np.arange(Ys.shape[0], dtype=float)
     return state_estimate(model, TestCase("windows", "default", t, U, Ys, model.input_names, model.output_names))
 
 
-def _plain_outputs(model):
-    """State index of every output if each output is a state (``y = x`` part), else None (cached)."""
-    key = "_plain_outputs"
-    if key not in model.__dict__:
-        states = list(model.z_symbols[: model.n])
-        idx = [states.index(e) if e in states else None for e in model.h_expr]
-        model.__dict__[key] = None if any(i is None for i in idx) else np.array(idx)
-    return model.__dict__[key]
-
-
 def window_residuals(model, cand: Candidate, theta_eff: dict, data, sigma, substeps):
     """Normalised multi-step prediction residuals of all windows of all cases (one flat array)."""
-    from reachconf_kernels.integrate import rk4_windows
-
     comp = model.compiled()
     pv = model.param_vector
-    direct = _output_states(model)
-    plain = _plain_outputs(model)
+    direct = output_index_of_states(model)
+    plain = state_index_of_outputs(model)
     out = []
     for d in data:
         U, Ym = transformed_signals(model, cand, theta_eff, d.t, d.U, d.Y)
@@ -219,7 +206,8 @@ def window_residuals(model, cand: Candidate, theta_eff: dict, data, sigma, subst
         X0 = _states(model, Ysm[d.starts], U[d.starts], direct)
         P = rk4_windows(comp.f, np.ascontiguousarray(X0), d.starts, U, d.t, pv, model.q, d.length, int(substeps))
         idx = (d.starts[:, None] + 1 + np.arange(d.length)[None, :]).reshape(-1)
-        Yp = P.reshape(-1, model.n)[:, plain] if plain is not None else _outputs(model, P.reshape(-1, model.n), U[idx])
+        Xp = P.reshape(-1, model.n)
+        Yp = Xp[:, plain] if plain is not None else evaluate_outputs(model, Xp, U[idx])
         if not np.all(np.isfinite(Yp)):
             Yp = np.where(np.isfinite(Yp), Yp, 1e6)
         out.append(((Yp - Ym[idx]) / sigma).reshape(-1))
@@ -267,8 +255,6 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
             th = tuple(x[i : i + k])
             eff[(e.name, tgt)] = th
             if e.kind in ("param", "state"):
-                from reachconf.diagnose.effects import effect_param_name
-
                 params.update({effect_param_name(e.name, p, tgt): v for p, v in zip(e.params, th)})
         return model.with_params(**params), eff
 

@@ -27,6 +27,10 @@ import numpy as np
 
 from reachconf.conformance.trace import TraceOptions, trace_disturbances
 from reachconf.errors import ConformanceError
+from reachconf.io.atomic import atomic_write
+from reachconf.io.cases import case_arrays
+from reachconf.model.outputs import evaluate_outputs
+from reachconf_kernels.integrate import rk4_one_step_each
 
 __all__ = ["GapLocation", "locate_gap"]
 
@@ -52,9 +56,7 @@ class GapLocation:
     def to_json(self, path=None) -> str:
         text = json.dumps(self.to_dict(), indent=2, default=float)
         if path is not None:
-            from reachconf.io import atomic_write_text
-
-            atomic_write_text(path, text)
+            atomic_write(path, text)
         return text
 
     def summary(self, top: int = 3) -> str:
@@ -187,9 +189,6 @@ def _drivers(model, cases, traces, V):
     """
     from scipy.stats import spearmanr
 
-    from reachconf.conformance.trace import _outputs, case_arrays
-    from reachconf_kernels.integrate import rk4_one_step_each
-
     comp = model.compiled()
     pv = model.param_vector
     absW, innov = [], []
@@ -199,7 +198,7 @@ def _drivers(model, cases, traces, V):
         X = np.ascontiguousarray(r.X[:-1])
         Xp = rk4_one_step_each(comp.f, X, np.ascontiguousarray(U[:-1]), np.zeros((X.shape[0], model.q)),
                                np.diff(t), pv, 4)  # fmt: skip
-        innov.append(Y[1:] - _outputs(model, Xp, np.ascontiguousarray(U[1:])))
+        innov.append(Y[1:] - evaluate_outputs(model, Xp, np.ascontiguousarray(U[1:])))
         W = r.W_trace
         absW.append(np.abs(W[: X.shape[0]]))
     absW, innov = np.vstack(absW), np.vstack(innov)

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from reachconf.io.atomic import atomic_write
+
 __all__ = ["GapReport"]
 
 
@@ -80,9 +82,7 @@ class GapReport:
         """JSON text (``{"where", "ranked_effects", "verdict", ...}``); written atomically to ``path`` if given."""
         text = json.dumps(self.to_dict(), indent=2)
         if path is not None:
-            from reachconf.io import atomic_write_text
-
-            atomic_write_text(path, text)
+            atomic_write(path, text)
         return text
 
     def summary(self, top: int = 5) -> str:
@@ -142,8 +142,6 @@ class GapReport:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        from reachconf.io import _atomic_write_bytes as atomic_write_bytes
-
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         paths = []
@@ -157,7 +155,7 @@ class GapReport:
             ax.set_xlabel("shrink of the minimal trace-conformant W volume (held-out cases)")
             ax.set_title(self.verdict[:90], fontsize=8)
             fig.tight_layout()
-            paths.append(_save(fig, out / "effects.png", atomic_write_bytes))
+            paths.append(_save(fig, out / "effects.png"))
         ba = self.before_after.get("W")
         if ba:
             chans = list(ba)
@@ -169,7 +167,7 @@ class GapReport:
                 ax.set_title(f"{ch}: x{ba[ch]['shrink']:.2f}", fontsize=9)
             fig.suptitle("minimal trace-conformant W, before/after", fontsize=9)
             fig.tight_layout()
-            paths.append(_save(fig, out / "boxes.png", atomic_write_bytes))
+            paths.append(_save(fig, out / "boxes.png"))
         drawn = [tb for tb in self.tubes if "tube" in tb]
         if drawn:
             fig, ax = plt.subplots(figsize=(8, 4))
@@ -187,11 +185,11 @@ class GapReport:
             ax.set_ylabel("Y [m]")
             ax.set_title("reach tubes of a held-out case, before and after modelling the effect", fontsize=9)
             fig.tight_layout()
-            paths.append(_save(fig, out / "tubes.png", atomic_write_bytes))
+            paths.append(_save(fig, out / "tubes.png"))
         return paths
 
 
-def _save(fig, path, writer):
+def _save(fig, path):
     import io
 
     import matplotlib.pyplot as plt
@@ -199,5 +197,5 @@ def _save(fig, path, writer):
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
-    writer(path, buf.getvalue())
+    atomic_write(path, buf.getvalue())
     return str(path)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from reachconf.model import Model
+from reachconf.model.core import Model
 
 __all__ = ["vanderpol", "laub_loomis"]
 

@@ -1,16 +1,16 @@
-"""Pedestrian models of section 7.2 (eqs. 73 and 74) and the disk input sets."""
+"""Pedestrian models of section 7.2 (eqs. 73 and 74).
+
+Their disk input sets and the box ⊕ disk reachable positions are set types of
+:mod:`reachconf.sets.disk` (:func:`disk_zonotope`, :class:`BoxDisk`), also
+importable from here.
+"""
 
 from __future__ import annotations
 
-import math
+from reachconf.model.core import Model
+from reachconf.sets.disk import BoxDisk, disk_zonotope
 
-import numpy as np
-
-from reachconf.errors import SetError
-from reachconf.model import Model
-from reachconf.sets import Zonotope
-
-__all__ = ["pedestrian_acc", "pedestrian_vel", "disk_zonotope"]
+__all__ = ["pedestrian_acc", "pedestrian_vel", "disk_zonotope", "BoxDisk"]
 
 
 def pedestrian_acc() -> Model:
@@ -39,21 +39,3 @@ def pedestrian_vel() -> Model:
         outputs=("px", "py"),
         description="velocity-constrained pedestrian (eq. 74)",
     )
-
-
-def disk_zonotope(radius: float, n_generators: int = 8, center=(0.0, 0.0)) -> Zonotope:
-    """A zonotope enclosing the disk of the given radius: a circumscribed regular ``2k``-gon.
-
-    ``k`` generators of length ``r tan(pi / 2k)`` at angles ``i pi / k``; the
-    polygon's apothem is ``r``, so it contains the disk and exceeds it by a
-    factor ``1 / cos(pi / 2k)`` at its corners.
-    """
-    if not (math.isfinite(radius) and radius >= 0):
-        raise SetError(f"radius must be a finite non-negative number, got {radius!r}")
-    k = int(n_generators)
-    if k < 2:
-        raise SetError(f"n_generators must be at least 2, got {n_generators!r}")
-    length = radius * math.tan(math.pi / (2 * k)) * (1 + 1e-12)
-    angles = np.arange(k) * math.pi / k
-    G = length * np.vstack([np.cos(angles), np.sin(angles)])
-    return Zonotope(np.asarray(center, dtype=float), G)

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from reachconf.model import Model
 import sympy as sp
+
+from reachconf.model.core import Model
 
 __all__ = ["diff_drive"]
 

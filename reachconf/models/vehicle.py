@@ -23,7 +23,8 @@ import math
 
 import sympy as sp
 
-from reachconf.model import Model
+from reachconf.model.core import Model
+from reachconf.models.vehicle_controller import ControllerGains, tracking_law
 
 __all__ = ["bicycle", "bicycle_actuated", "bicycle_closed_loop", "bicycle_closed_loop_actuated", "TABLE1", "TABLE2"]
 
@@ -119,23 +120,17 @@ def bicycle_actuated(**params) -> Model:
 
 
 def _gain_names():
-    from reachconf.campaign.controller import ControllerGains
-
     return list(ControllerGains.__dataclass_fields__)
 
 
 def _gain_params() -> dict:
     """The default controller gains as model parameters ``gain_<name>``."""
-    from reachconf.campaign.controller import ControllerGains
-
     gains = ControllerGains()
     return {f"gain_{k}": float(getattr(gains, k)) for k in _gain_names()}
 
 
 def _controller(s):
     """``(a_x, delta)`` commanded by the tracking law on the model's symbols (gains are parameters)."""
-    from reachconf.campaign.controller import ControllerGains, tracking_law
-
     g = ControllerGains(**{k: s[f"gain_{k}"] for k in _gain_names()})
     return tracking_law(s.X, s.Y, s.psi, s.vx, s.vy, s.omega, s.X_ref, s.Y_ref, s.psi_ref, s.v_ref, s.kappa_ref, g,
                         m=sp)  # fmt: skip
@@ -145,12 +140,12 @@ def bicycle_closed_loop(**params) -> Model:
     """Closed-loop bicycle model of section 4.3 (reachset conformance), eqs. 59/60.
 
     f_B driven by the continuous-time tracking controller of
-    :func:`reachconf.campaign.controller.tracking_law` (the same law the test
+    :func:`reachconf.models.vehicle_controller.tracking_law` (the same law the test
     campaign uses, written once for numpy and sympy) on the lateral, heading
     and speed errors to a reference that enters as known inputs
     ``X_ref, Y_ref, psi_ref, v_ref, kappa_ref``; each of the six ODEs gets an
     additive disturbance ``w1..w6`` (eq. 60).  Controller gains are parameters
-    (``k_*`` names of :class:`reachconf.campaign.controller.ControllerGains`).
+    (``k_*`` names of :class:`reachconf.models.vehicle_controller.ControllerGains`).
     """
     p = dict(TABLE1)
     p.update(_gain_params())
@@ -179,7 +174,7 @@ def bicycle_closed_loop_actuated(**params) -> Model:
     As :func:`bicycle_closed_loop`, but the controller's commands pass through
     the first-order actuators of eqs. 57/58 (Table 2 parameters; the steering
     request is ``delta_cmd / delta_s_nominal``, the acceleration request is sent
-    uncorrected, as in :mod:`reachconf.campaign.plant`).  States and outputs
+    uncorrected, as in :mod:`reachconf.datasets.vehicle_campaign.plant`).  States and outputs
     ``X, Y, psi, vx, vy, omega, ax, delta`` (the realised acceleration and
     steering angle are measured); disturbances ``w1..w6`` on the vehicle ODEs.
     """

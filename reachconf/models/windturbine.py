@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 
-from reachconf.model import Model
+from reachconf.model.core import Model
 
 __all__ = ["wind_turbine", "nrel5mw_parameters", "CP_DEFAULT", "CT_DEFAULT"]
 

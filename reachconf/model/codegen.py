@@ -25,23 +25,27 @@ The cache folder is ``$REACHCONF_CACHE`` if set, else the user cache folder
 from __future__ import annotations
 
 import hashlib
+import importlib.metadata
 import importlib.util
+import io
 import os
 import re
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
-from fractions import Fraction
+from itertools import permutations
 from pathlib import Path
 
 import numpy as np
 import sympy as sp
-from sympy.printing.pycode import PythonCodePrinter
 
+import reachconf_kernels
 from reachconf.errors import ModelError
+from reachconf.io.atomic import atomic_write
+from reachconf.model.printers import IntervalEmitter, point_code
 
-__all__ = ["CompiledModel", "compile_model", "cache_dir", "GENERATOR_VERSION"]
+__all__ = ["CompiledModel", "compile_model", "cache_dir", "model_hash", "generate_source", "package_version",
+           "GENERATOR_VERSION"]  # fmt: skip
 
 #: Bump when the generated code changes meaning: old cache entries are then ignored.
 GENERATOR_VERSION = "1"
@@ -117,8 +121,6 @@ def _kernel_fingerprint() -> str:
     interval kernel; when that kernel changes, the generated module must be
     rebuilt in a fresh folder or numba reports "unresolved symbol".
     """
-    import reachconf_kernels
-
     h = hashlib.sha256()
     folder = Path(reachconf_kernels.__file__).parent
     for name in ("interval.py", "__init__.py"):
@@ -126,13 +128,31 @@ def _kernel_fingerprint() -> str:
     return h.hexdigest()[:16]
 
 
-def model_hash(model, order: int) -> str:
-    from reachconf import __version__
+def package_version() -> str:
+    """The installed version of reachconf (from its metadata; ``"0+unknown"`` if it is not installed)."""
+    try:
+        return importlib.metadata.version("reachconf")
+    except importlib.metadata.PackageNotFoundError:  # pragma: no cover - a plain source checkout
+        return "0+unknown"
 
+
+def model_hash(model, order: int) -> str:
+    """Hash of what the generated code of ``model`` depends on (cache file name).
+
+    Parameters
+    ----------
+    model : reachconf.Model
+    order : {2, 3}
+
+    Returns
+    -------
+    str
+        20 hexadecimal digits.
+    """
     h = hashlib.sha256()
     for part in (
         GENERATOR_VERSION,
-        __version__,
+        package_version(),
         _kernel_fingerprint(),
         str(order),
         repr(model.state_names),
@@ -173,8 +193,10 @@ def compile_model(model, order: int = 2) -> CompiledModel:
     from_cache = path.exists() and meta_path.exists()
     if not from_cache:
         source, meta = generate_source(model, order)
-        _atomic_write_text(path, source)
-        _atomic_write_npz(meta_path, meta)
+        atomic_write(path, source)
+        buf = io.BytesIO()
+        np.savez(buf, **meta)
+        atomic_write(meta_path, buf.getvalue())
     module = sys.modules.get(modname)
     if module is None:
         spec = importlib.util.spec_from_file_location(modname, path)
@@ -206,20 +228,6 @@ def compile_model(model, order: int = 2) -> CompiledModel:
         seconds=time.perf_counter() - t0,
         module=module,
     )
-
-
-def _atomic_write_text(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
-
-
-def _atomic_write_npz(path: Path, arrays: dict) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp.npz")
-    os.close(fd)
-    np.savez(tmp, **arrays)
-    os.replace(tmp, path)
 
 
 # ---------------------------------------------------------------------------
@@ -259,180 +267,7 @@ def _permutations3(j, k):
 
 
 def _permutations4(j, k, l):
-    from itertools import permutations
-
     return set(permutations((j, k, l)))
-
-
-# ---------------------------------------------------------------------------
-# printers
-# ---------------------------------------------------------------------------
-class _PointPrinter(PythonCodePrinter):
-    """Plain-Python printer using the ``math`` module (numba compiles it)."""
-
-    def _print_Rational(self, expr):
-        return f"({float(expr.p)!r}/{float(expr.q)!r})"
-
-    def _print_Float(self, expr):
-        return repr(float(expr))
-
-    def _print_Integer(self, expr):
-        return f"{float(expr)!r}"
-
-    def _print_Pow(self, expr, rational=False):
-        base, exp = expr.as_base_exp()
-        if exp.is_Integer and abs(int(exp)) <= 8:
-            k = int(exp)
-            b = self.parenthesize(base, 100)
-            if k == 0:
-                return "1.0"
-            prod = "*".join([b] * abs(k))
-            return f"({prod})" if k > 0 else f"(1.0/({prod}))"
-        if exp == sp.Rational(1, 2):
-            return f"math.sqrt({self._print(base)})"
-        if exp == sp.Rational(-1, 2):
-            return f"(1.0/math.sqrt({self._print(base)}))"
-        return f"math.pow({self._print(base)}, {self._print(exp)})"
-
-
-_POINT = _PointPrinter({"fully_qualified_modules": True, "standard": "python3"})
-
-
-def _point_code(expr, names) -> str:
-    code = _POINT.doprint(expr)
-    return code
-
-
-def _interval_const(value) -> tuple[str, str]:
-    """Outward-rounded float bounds of an exact sympy number."""
-    if isinstance(value, (sp.Integer, sp.Rational)):
-        frac = Fraction(int(value.p), int(value.q))
-    elif isinstance(value, sp.Float):
-        frac = Fraction(float(value))  # a sympy Float written by the user is taken as the double it denotes
-    else:  # pi, E, ...: evaluate at high precision
-        frac = Fraction(sp.Rational(sp.N(value, 40)).p, sp.Rational(sp.N(value, 40)).q)
-        approx = float(frac)
-        return repr(float(np.nextafter(approx, -np.inf))), repr(float(np.nextafter(approx, np.inf)))
-    approx = float(frac)
-    if Fraction(approx) == frac:
-        return repr(approx), repr(approx)
-    lo = approx if Fraction(approx) < frac else float(np.nextafter(approx, -np.inf))
-    hi = approx if Fraction(approx) > frac else float(np.nextafter(approx, np.inf))
-    return repr(lo), repr(hi)
-
-
-class _IntervalEmitter:
-    """Turns sympy expressions into straight-line interval code (pairs of locals)."""
-
-    def __init__(self, var_map: dict, guards: list, indent: str = "    "):
-        self.var_map = dict(var_map)  # Symbol -> (lo, hi) code strings
-        self.lines: list[str] = []
-        self.guards = guards
-        self.indent = indent
-        self.counter = 0
-        self.memo: dict = {}
-
-    def _new(self) -> tuple[str, str]:
-        self.counter += 1
-        return f"v{self.counter}_lo", f"v{self.counter}_hi"
-
-    def _call(self, fn: str, *args: str) -> tuple[str, str]:
-        lo, hi = self._new()
-        self.lines.append(f"{self.indent}{lo}, {hi} = I.{fn}({', '.join(args)})")
-        return lo, hi
-
-    def _guard(self, condition: str, what: str) -> None:
-        self.guards.append(what)
-        self.lines.append(f"{self.indent}if {condition}:")
-        self.lines.append(f"{self.indent}    return {len(self.guards)}")
-
-    def emit(self, expr) -> tuple[str, str]:
-        if expr in self.var_map:
-            return self.var_map[expr]
-        key = expr
-        if key in self.memo:
-            return self.memo[key]
-        result = self._emit(expr)
-        self.memo[key] = result
-        return result
-
-    def _emit(self, expr) -> tuple[str, str]:
-        if expr.is_Number or isinstance(expr, sp.NumberSymbol):
-            return _interval_const(expr)
-        if expr.is_Symbol:
-            raise ModelError(f"internal error: symbol {expr} has no interval value")
-        if expr.is_Add:
-            args = list(expr.args)
-            acc = self.emit(args[0])
-            for a in args[1:]:
-                acc = self._call("add", *acc, *self.emit(a))
-            return acc
-        if expr.is_Mul:
-            coeff, rest = expr.as_coeff_Mul()
-            if coeff == -1:
-                return self._call("neg", *self.emit(rest))
-            args = list(expr.args)
-            acc = self.emit(args[0])
-            for a in args[1:]:
-                acc = self._call("mul", *acc, *self.emit(a))
-            return acc
-        if expr.is_Pow:
-            base, exp = expr.as_base_exp()
-            b = self.emit(base)
-            if exp.is_Integer:
-                k = int(exp)
-                if k == 2:
-                    return self._call("sqr", *b)
-                if k < 0:
-                    self._guard(f"{b[0]} <= 0.0 <= {b[1]}", f"division by an interval containing 0 in {expr}")
-                    if k == -1:
-                        return self._call("div", "1.0", "1.0", *b)
-                return self._call("pow", *b, str(k))
-            if exp == sp.Rational(1, 2):
-                self._guard(f"{b[0]} < 0.0", f"square root of a negative interval in {expr}")
-                return self._call("sqrt", *b)
-            if exp == sp.Rational(-1, 2):
-                self._guard(f"{b[0]} <= 0.0", f"square root of a non-positive interval in {expr}")
-                s = self._call("sqrt", *b)
-                return self._call("div", "1.0", "1.0", *s)
-            self._guard(f"{b[0]} <= 0.0", f"power of a non-positive interval in {expr}")
-            lg = self._call("log", *b)
-            e = self.emit(exp)
-            return self._call("exp", *self._call("mul", *e, *lg))
-        if isinstance(expr, sp.exp):
-            return self._call("exp", *self.emit(expr.args[0]))
-        if isinstance(expr, sp.log):
-            if len(expr.args) != 1:
-                raise ModelError(f"log with a base is not supported: {expr}")
-            a = self.emit(expr.args[0])
-            self._guard(f"{a[0]} <= 0.0", f"logarithm of a non-positive interval in {expr}")
-            return self._call("log", *a)
-        if isinstance(expr, sp.sin):
-            return self._call("sin", *self.emit(expr.args[0]))
-        if isinstance(expr, sp.cos):
-            return self._call("cos", *self.emit(expr.args[0]))
-        if isinstance(expr, sp.tan):
-            a = self.emit(expr.args[0])
-            c = self._call("cos", *a)
-            self._guard(f"{c[0]} <= 0.0 <= {c[1]}", f"tangent across a pole in {expr}")
-            return self._call("div", *self._call("sin", *a), *c)
-        if isinstance(expr, sp.atan):
-            return self._call("atan", *self.emit(expr.args[0]))
-        if isinstance(expr, sp.tanh):
-            return self._call("tanh", *self.emit(expr.args[0]))
-        if isinstance(expr, sp.Abs):
-            return self._call("abs", *self.emit(expr.args[0]))
-        if isinstance(expr, (sp.Min, sp.Max)):
-            fn = "min" if isinstance(expr, sp.Min) else "max"
-            args = list(expr.args)
-            acc = self.emit(args[0])
-            for a in args[1:]:
-                acc = self._call(fn, *acc, *self.emit(a))
-            return acc
-        raise ModelError(
-            f"the interval code generator does not support {type(expr).__name__} (in {expr}); "
-            f"rewrite the model with +, -, *, /, powers, sqrt, exp, log, sin, cos, tan, atan, tanh, Abs, Min, Max"
-        )
 
 
 # ---------------------------------------------------------------------------
@@ -476,9 +311,9 @@ def _point_function(name, sig, targets, model, z_index, p_index) -> str:
     lines = [f"@nb.njit({sig}, cache=True, error_model='numpy', fastmath=False)", f"def {name}(z, p, out):"]
     lines += _load_lines(model.z_symbols + model.p_symbols, z_index, p_index, used, point=True)
     for sym, e in reps:
-        lines.append(f"    {sym.name} = {_point_code(e, None)}")
+        lines.append(f"    {sym.name} = {point_code(e)}")
     for (idx, _), e in zip(targets, reduced):
-        lines.append(f"    out[{idx}] = {_point_code(e, None)}")
+        lines.append(f"    out[{idx}] = {point_code(e)}")
     lines.append("    return")
     return "\n".join(lines) + "\n\n"
 
@@ -494,7 +329,7 @@ def _interval_function(name, sig, targets, model, z_index, p_index, guards) -> s
         var_map[sym] = (f"{sym.name}_lo", f"{sym.name}_hi")
     for sym in model.p_symbols:
         var_map[sym] = (sym.name, sym.name)
-    em = _IntervalEmitter(var_map, guards)
+    em = IntervalEmitter(var_map, guards)
     for sym, e in reps:
         lo, hi = em.emit(e)
         em.lines.append(f"    {sym.name}_lo = {lo}")

@@ -1,4 +1,4 @@
-"""Path-tracking controller of the vehicle campaign, written once for numpy and sympy.
+"""Path-tracking controller of the vehicle models and campaign, written once for numpy and sympy.
 
 A continuous-time law on the errors to a reference point that moves along the
 path at the reference speed (the closed-loop model of section 4.3, eqs.
@@ -11,7 +11,7 @@ path at the reference speed (the closed-loop model of section 4.3, eqs.
 
 ``L kappa_ref`` is the kinematic feed-forward steering for the path
 curvature.  The default gains are a compromise measured on the campaign
-plant (:mod:`reachconf.campaign.plant`, all actuator effects on, 60 ms steering
+plant (:mod:`reachconf.datasets.vehicle_campaign.plant`, all actuator effects on, 60 ms steering
 delay): stiffer gains (k_y = 0.3, k_psi = 2) lose the 4 m/s² swerve through the
 actuator delay and lag, softer ones (k_y = 0.08, k_psi = 0.9) let the
 linearised reach tube of the closed-loop model with the report's Table 6 box

@@ -4,7 +4,7 @@ The DLR measurements of the report are not public, so the test campaign is
 generated from a high-fidelity plant: the 29-state multi-body model of
 ``commonroad-vehicle-models`` (``vehicle_dynamics_mb``, BMW 320i parameters,
 ``parameters_vehicle2``) in closed loop with the tracking controller of
-:mod:`reachconf.campaign.controller` running at 100 Hz (sample and hold).
+:mod:`reachconf.models.vehicle_controller` running at 100 Hz (sample and hold).
 Between the controller's requests and the plant sit (each configurable, each
 can be switched off):
 
@@ -36,8 +36,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from reachconf.campaign.controller import ControllerGains, tracking_law
 from reachconf.models.vehicle import TABLE2
+from reachconf.models.vehicle_controller import ControllerGains, tracking_law
 
 __all__ = ["PlantEffects", "simulate_maneuver", "NO_EFFECTS"]
 
@@ -112,7 +112,7 @@ def simulate_maneuver(ref: dict, effects: PlantEffects = PlantEffects(), gains: 
     Parameters
     ----------
     ref : dict
-        From :func:`reachconf.campaign.maneuvers.reference_path` (sampled at ``rate``).
+        From :func:`reachconf.datasets.vehicle_campaign.maneuvers.reference_path` (sampled at ``rate``).
     effects : PlantEffects
     seed : int
         Seed of the sensor noise.

@@ -1,6 +1,6 @@
 """Suites with one withheld effect, for checking the gap diagnosis (``reachconf.diagnose``).
 
-The multi-body "real vehicle" of :mod:`reachconf.campaign.plant` runs with
+The multi-body "real vehicle" of :mod:`reachconf.datasets.vehicle_campaign.plant` runs with
 ideal actuators and no offsets, INS-like sensor noise on, plus exactly one
 effect from the list below.  The suites record what a test driver's logger
 would give a modeller who has not measured the actuators: the controller's
@@ -18,7 +18,17 @@ from dataclasses import replace
 
 import numpy as np
 
-from reachconf.campaign.plant import NO_EFFECTS, PlantEffects, simulate_maneuver
+from reachconf.datasets.vehicle_campaign import (
+    NO_EFFECTS,
+    PlantEffects,
+    excitation_path,
+    reference_path,
+    simulate_maneuver,
+)
+from reachconf.diagnose.fit import Candidate, DiagnoseOptions, fit_candidate, noise_level, prepare
+from reachconf.errors import OptionsError
+from reachconf.io import TestCase, TestSuite
+from reachconf.models import bicycle
 
 __all__ = ["WITHHELD", "noisy_ideal_plant", "withheld_suite", "DIAGNOSIS_MANEUVERS"]
 
@@ -54,10 +64,6 @@ def withheld_suite(name: str, repetitions: int = 3, maneuvers=DIAGNOSIS_MANEUVER
     """
     from tqdm.auto import tqdm
 
-    from reachconf.campaign.maneuvers import excitation_path, reference_path
-    from reachconf.errors import OptionsError
-    from reachconf.io import TestCase, TestSuite
-
     if name not in WITHHELD:
         raise OptionsError(f"unknown withheld effect {name!r}; known: {sorted(WITHHELD)}")
     changes, truth = WITHHELD[name]
@@ -81,9 +87,6 @@ def nominal_bicycle_params(repetitions: int = 2, seed: int = 99) -> dict:
     of :mod:`reachconf.diagnose.fit`) on runs of the noisy ideal plant with
     *other* seeds than any diagnosis suite.
     """
-    from reachconf.diagnose.fit import Candidate, DiagnoseOptions, fit_candidate, noise_level, prepare
-    from reachconf.models import bicycle
-
     suite, _ = withheld_suite("none", repetitions=repetitions, seed=seed)
     model = bicycle()
     opts = DiagnoseOptions(prior=10.0, param_bounds=0.9)

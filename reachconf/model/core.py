@@ -5,7 +5,7 @@ states ``x``, known inputs ``u``, disturbances ``w`` (non-deterministic, in a se
 ``W``), parameters ``p`` and outputs ``y`` with an additive measurement error
 ``v`` in a set ``V``.  Everything else — Jacobians, Hessians, third-order tensors
 and their interval (Lagrange-remainder) enclosures — is generated from it and
-compiled with numba by :mod:`reachconf.codegen`.
+compiled with numba by :mod:`reachconf.model.codegen`.
 
 Examples
 --------
@@ -42,6 +42,7 @@ import numpy as np
 import sympy as sp
 
 from reachconf.errors import ModelError
+from reachconf.model.codegen import compile_model
 
 __all__ = ["Model", "Symbols"]
 
@@ -376,13 +377,11 @@ class Model:
         self.__dict__.update(state)
 
     def compiled(self, order: int = 2):
-        """The compiled functions of this model (see :func:`reachconf.codegen.compile_model`).
+        """The compiled functions of this model (see :func:`reachconf.model.codegen.compile_model`).
 
         ``order=3`` also builds the third-order tensors.  Compilation happens
         once per expression set and is cached on disk.
         """
-        from reachconf.codegen import compile_model
-
         key = f"_compiled_{order}"
         cached = self.__dict__.get(key)
         if cached is None:

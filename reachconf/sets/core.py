@@ -1,6 +1,7 @@
-"""User-facing sets: :class:`Interval` (axis-aligned boxes) and :class:`Zonotope`.
+"""The two concrete set types, :class:`Interval` (axis-aligned boxes) and :class:`Zonotope`.
 
-Both are immutable (read-only numpy arrays) and validate their input; the
+They convert into each other (``Interval.to_zonotope``, ``Zonotope.interval``),
+so they share this module.  Both are immutable (read-only numpy arrays) and validate their input; the
 computations are done by the numba kernels in :mod:`reachconf_kernels.zonotope`.
 """
 
@@ -11,6 +12,7 @@ import math
 import numpy as np
 
 from reachconf.errors import SetError
+from reachconf.sets.containment import contains_points
 from reachconf_kernels import zonotope as zk
 
 __all__ = ["Interval", "Zonotope"]
@@ -87,7 +89,7 @@ class Interval:
 
     def to_zonotope(self) -> "Zonotope":
         c, G = zk.from_interval(np.asarray(self.lo), np.asarray(self.hi))
-        return Zonotope._new(c, G)
+        return Zonotope.from_kernel(c, G)
 
     def interval(self) -> "Interval":
         return self
@@ -209,8 +211,12 @@ class Zonotope:
         return (Zonotope, (np.array(self.center), np.array(self.generators)))
 
     @classmethod
-    def _new(cls, c, G) -> "Zonotope":
-        """Wrap kernel output (float64, right shapes) without re-validating it."""
+    def from_kernel(cls, c, G) -> "Zonotope":
+        """Wrap kernel output (float64 arrays of the right shapes) without re-validating it.
+
+        The arrays are taken over (made read-only), not copied; only a
+        non-finite result is rejected.  For user input use the constructor.
+        """
         # a sum is non-finite if any entry is; only then (or on overflow of the sum) check properly
         if not math.isfinite(c.sum() + G.sum()) and not (np.isfinite(c).all() and np.isfinite(G).all()):
             raise SetError("result is unbounded (overflow to inf/NaN)")
@@ -250,7 +256,7 @@ class Zonotope:
         if not np.all(np.isfinite(M)):
             raise SetError("matrix contains NaN or inf")
         c, G = zk.linear_map(np.ascontiguousarray(M), *self._cg())
-        return Zonotope._new(c, G)
+        return Zonotope.from_kernel(c, G)
 
     def __add__(self, other):
         c, G = self._cg()
@@ -258,12 +264,12 @@ class Zonotope:
             if other.dim != self.dim:
                 raise SetError(f"cannot add zonotopes of dimensions {self.dim} and {other.dim}")
             c2, G2 = zk.minkowski_sum(c, G, *other._cg())
-            return Zonotope._new(c2, G2)
+            return Zonotope.from_kernel(c2, G2)
         if isinstance(other, Interval):
             if other.dim != self.dim:
                 raise SetError(f"cannot add an interval of dimension {other.dim} to a zonotope of dimension {self.dim}")
             c2, G2 = zk.add_interval(c, G, np.asarray(other.lo), np.asarray(other.hi))
-            return Zonotope._new(c2, G2)
+            return Zonotope.from_kernel(c2, G2)
         v = _vector(other, "point")
         if v.size != self.dim:
             raise SetError(f"point has {v.size} entries, the zonotope {self.dim}")
@@ -280,30 +286,30 @@ class Zonotope:
             c, G = zk.reduce_pca(*self._cg(), float(order))
         else:
             raise SetError(f"unknown reduction method {method!r}; use 'girard' or 'pca'")
-        return Zonotope._new(c, G)
+        return Zonotope.from_kernel(c, G)
 
     def enclose(self, other: "Zonotope") -> "Zonotope":
         other = other.to_zonotope()
         if other.dim != self.dim:
             raise SetError(f"cannot enclose zonotopes of dimensions {self.dim} and {other.dim}")
         c, G = zk.enclose(*self._cg(), *other._cg())
-        return Zonotope._new(c, G)
+        return Zonotope.from_kernel(c, G)
 
     def cartesian(self, other) -> "Zonotope":
         other = other.to_zonotope()
         c, G = zk.cartesian_product(*self._cg(), *other._cg())
-        return Zonotope._new(c, G)
+        return Zonotope.from_kernel(c, G)
 
     def quad_map(self, Q) -> "Zonotope":
         Q = np.ascontiguousarray(np.asarray(Q, dtype=np.float64))
         if Q.ndim != 3 or Q.shape[1:] != (self.dim, self.dim):
             raise SetError(f"Q must have shape (k, {self.dim}, {self.dim}), got {Q.shape}")
         c, G = zk.quad_map(*self._cg(), Q)
-        return Zonotope._new(c, G)
+        return Zonotope.from_kernel(c, G)
 
     def compact(self, tol: float = 0.0) -> "Zonotope":
         c, G = zk.compact(*self._cg(), float(tol))
-        return Zonotope._new(c, G)
+        return Zonotope.from_kernel(c, G)
 
     def support(self, direction) -> float:
         d = _vector(direction, "direction")
@@ -342,8 +348,6 @@ class Zonotope:
         least-norm coefficient vector in the unit box are accepted at once;
         the rest are decided by an LP (HiGHS) each.
         """
-        from reachconf.containment import contains_points
-
         P, single = _points(points, self.dim)
         res = contains_points(self.center, self.generators, P, tol)
         return bool(res[0]) if single else res

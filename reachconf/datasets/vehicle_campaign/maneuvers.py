@@ -18,7 +18,7 @@ import numpy as np
 
 from reachconf.errors import OptionsError
 
-__all__ = ["MANEUVERS", "reference_path", "excitation_path"]
+__all__ = ["MANEUVERS", "reference_path", "excitation_path", "lane_change"]
 
 #: maneuver code -> description
 MANEUVERS = {"LC": "lane change", "SW": "swerve", "DLC": "double lane change", "SL": "slalom"}
@@ -28,7 +28,25 @@ LEAD_IN = 10.0
 LEAD_OUT = 15.0
 
 
-def _transition(x, x0, length, amp):
+def lane_change(x, x0, length, amp):
+    """A smooth transition of lateral offset ``amp`` over ``[x0, x0 + length]`` and its derivatives.
+
+    ``y = amp (u - sin(2 pi u) / (2 pi))`` with ``u = (x - x0) / length``
+    clipped to [0, 1]: the curvature is continuous (no kink in the path); its
+    peak is ``2 pi amp / length^2``.
+
+    Parameters
+    ----------
+    x : array_like
+        Positions along the path.
+    x0, length, amp : float
+        Start, length and lateral offset of the transition.
+
+    Returns
+    -------
+    y, dy, ddy : ndarray
+        Offset and its first and second derivatives with respect to ``x``.
+    """
     u = np.clip((x - x0) / length, 0.0, 1.0)
     on = (u > 0.0) & (u < 1.0)
     y = amp * (u - np.sin(2 * np.pi * u) / (2 * np.pi))
@@ -40,12 +58,12 @@ def _transition(x, x0, length, amp):
 def _profile(kind, x, a_lat, v):
     L = np.sqrt(2 * np.pi * LANE_WIDTH * v**2 / a_lat)
     if kind == "LC":
-        y, dy, ddy = _transition(x, LEAD_IN, L, LANE_WIDTH)
+        y, dy, ddy = lane_change(x, LEAD_IN, L, LANE_WIDTH)
         return y, dy, ddy, LEAD_IN + L + LEAD_OUT
     if kind in ("SW", "DLC"):
         gap = 0.0 if kind == "SW" else 12.0
-        y1, d1, dd1 = _transition(x, LEAD_IN, L, LANE_WIDTH)
-        y2, d2, dd2 = _transition(x, LEAD_IN + L + gap, L, -LANE_WIDTH)
+        y1, d1, dd1 = lane_change(x, LEAD_IN, L, LANE_WIDTH)
+        y2, d2, dd2 = lane_change(x, LEAD_IN + L + gap, L, -LANE_WIDTH)
         return y1 + y2, d1 + d2, dd1 + dd2, LEAD_IN + 2 * L + gap + LEAD_OUT
     if kind == "SL":
         amp = 1.5
@@ -131,8 +149,8 @@ def excitation_path(a_lat: float = 3.0, v: float = 10.0, dv: float = 2.0, durati
     xs = np.linspace(0.0, total, int(total / 0.005) + 1)
     lam = lam0 + (lam1 - lam0) * xs / total
     phase = np.concatenate([[0.0], np.cumsum(0.5 * (2 * np.pi / lam[1:] + 2 * np.pi / lam[:-1]) * np.diff(xs))])
-    env, _, _ = _transition(xs, 0.0, 10.0, 1.0)
-    fall, _, _ = _transition(xs, total - 10.0, 10.0, 1.0)
+    env, _, _ = lane_change(xs, 0.0, 10.0, 1.0)
+    fall, _, _ = lane_change(xs, total - 10.0, 10.0, 1.0)
     shape = (env - fall) * (lam / lam0) ** 3 * np.sin(phase)
     d1 = np.gradient(shape, xs)
     d2 = np.gradient(d1, xs)

@@ -1,6 +1,6 @@
 """The vehicle test campaign of section 4: 4 maneuvers x 2 lateral accelerations x 5 repetitions.
 
-:func:`make_campaign` runs :func:`reachconf.campaign.plant.simulate_maneuver`
+:func:`make_campaign` runs :func:`reachconf.datasets.vehicle_campaign.plant.simulate_maneuver`
 for lane change, swerve, double lane change and slalom at 10 m/s with peak
 lateral accelerations 2 and 4 m/s^2 (groups ``LC_2 ... SL_4``), seeded and
 deterministic, and returns (and optionally saves) the suite.  Each case has
@@ -12,8 +12,12 @@ delta_req`` and the reference ``X_ref ... kappa_ref`` are extras, so
 
 from __future__ import annotations
 
-from reachconf.campaign.maneuvers import reference_path
-from reachconf.campaign.plant import PlantEffects, simulate_maneuver
+from tqdm.auto import tqdm
+
+from reachconf.datasets.vehicle_campaign.maneuvers import reference_path
+from reachconf.datasets.vehicle_campaign.plant import PlantEffects, simulate_maneuver
+from reachconf.io.cases import TestCase, TestSuite
+from reachconf.io.files import save_suite
 
 __all__ = ["CAMPAIGN_MANEUVERS", "CAMPAIGN_ACCELERATIONS", "make_campaign", "make_case"]
 
@@ -25,8 +29,6 @@ _EXTRAS = ("ax_req", "delta_req", "X_ref", "Y_ref", "psi_ref", "v_ref", "kappa_r
 
 def make_case(kind, a_lat, rep, effects=PlantEffects(), seed=0, v=10.0, feedforward_only=False, name=None):
     """One campaign run as a :class:`reachconf.io.TestCase` (group ``f"{kind}_{a_lat:g}"``)."""
-    from reachconf.io import TestCase
-
     ref = reference_path(kind, a_lat, v)
     # a distinct, reproducible noise seed per (seed, maneuver, acceleration, repetition)
     kind_index = CAMPAIGN_MANEUVERS.index(kind) if kind in CAMPAIGN_MANEUVERS else 9
@@ -40,10 +42,6 @@ def make_case(kind, a_lat, rep, effects=PlantEffects(), seed=0, v=10.0, feedforw
 def make_campaign(folder=None, effects=PlantEffects(), seed=0, repetitions=5, maneuvers=CAMPAIGN_MANEUVERS,
                   accelerations=CAMPAIGN_ACCELERATIONS, feedforward_only=False, progress=True):  # fmt: skip
     """Generate the campaign suite (40 cases by default); save it to ``folder`` if given."""
-    from tqdm.auto import tqdm
-
-    from reachconf.io import TestSuite, save_suite
-
     jobs = [(k, a, r) for k in maneuvers for a in accelerations for r in range(repetitions)]
     cases = [make_case(k, a, r, effects, seed, feedforward_only=feedforward_only)
              for k, a, r in tqdm(jobs, desc="campaign", disable=not progress, leave=False)]  # fmt: skip

@@ -1,0 +1,15 @@
+"""Test cases and suites in memory and on disk, and the one atomic file writer.
+
+:class:`TestCase` / :class:`TestSuite` (:mod:`reachconf.io.cases`) hold measured
+test cases ⟨U, Y, T⟩ (source report section 3.1); :func:`load_suite` /
+:func:`save_suite` (:mod:`reachconf.io.files`) read and write folders of CSV or
+NPZ files; :func:`atomic_write` (:mod:`reachconf.io.atomic`) is how every file
+of the package is written.
+"""
+
+from reachconf.io.atomic import atomic_write, atomic_write_text
+from reachconf.io.cases import TestCase, TestSuite, case_arrays, check_signals
+from reachconf.io.files import UNITS, load_case, load_suite, save_case, save_suite
+
+__all__ = ["TestCase", "TestSuite", "load_suite", "save_suite", "load_case", "save_case", "UNITS", "atomic_write",
+           "atomic_write_text", "check_signals", "case_arrays"]  # fmt: skip

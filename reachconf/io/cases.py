@@ -1,0 +1,285 @@
+"""Measured test cases ⟨U, Y, T⟩ (source report section 3.1) in memory: :class:`TestCase`, :class:`TestSuite`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from reachconf.errors import DataError
+
+__all__ = ["TestCase", "TestSuite", "check_signals", "case_arrays"]
+
+
+def check_signals(where: str, t, U, Y, input_names, output_names, first_row: int = 1):
+    """Validate shapes and values; ``first_row`` is the row number of sample 0 in messages (2 in a CSV)."""
+    t = np.asarray(t, dtype=float)
+    U = np.asarray(U, dtype=float)
+    Y = np.asarray(Y, dtype=float)
+    if t.ndim != 1:
+        raise DataError(f"{where}: t must be 1-D, got shape {t.shape}")
+    K = t.size
+    if K < 2:
+        raise DataError(f"{where}: a test case needs at least 2 samples, got {K}")
+    if U.ndim == 1 and U.size == 0:
+        U = U.reshape(K, 0)
+    if U.ndim != 2 or U.shape[0] != K or U.shape[1] != len(input_names):
+        raise DataError(f"{where}: U must have shape ({K}, {len(input_names)}), got {U.shape}")
+    if Y.ndim != 2 or Y.shape[0] != K or Y.shape[1] != len(output_names):
+        raise DataError(f"{where}: Y must have shape ({K}, {len(output_names)}), got {Y.shape}")
+    for arr, names, kind in ((t[:, None], ("t",), "t"), (U, input_names, "U"), (Y, output_names, "Y")):
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            r, c = np.argwhere(bad)[0]
+            raise DataError(f"{where}: row {r + first_row}, column {names[c]!r}: value is {arr[r, c]} "
+                            "(NaN/inf not allowed)")  # fmt: skip
+    dt = np.diff(t)
+    if np.any(dt <= 0):
+        r = int(np.argmax(dt <= 0))
+        raise DataError(f"{where}: row {r + first_row + 1}, column 't': time is not strictly increasing "
+                        f"({t[r]} then {t[r + 1]})")  # fmt: skip
+    return t, U, Y
+
+
+@dataclass(frozen=True, eq=False)
+class TestCase:
+    """One measured test case ⟨U, Y, T⟩ (section 3.1).
+
+    Parameters
+    ----------
+    name, group : str
+        Case name (file stem) and group (maneuver) it belongs to.
+    t : ndarray (K,)
+        Sample times, strictly increasing, seconds.
+    U : ndarray (K, m)
+        Known inputs, held constant between samples.
+    Y : ndarray (K, p)
+        Measured outputs.
+    input_names, output_names : tuple of str
+        Column names of ``U`` and ``Y``.
+    extras : dict str -> ndarray (K,)
+        Further measured signals (e.g. requested actuator values).
+    """
+
+    __test__ = False  # not a pytest test class
+
+    name: str
+    group: str
+    t: np.ndarray
+    U: np.ndarray
+    Y: np.ndarray
+    input_names: tuple = ()
+    output_names: tuple = ()
+    extras: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        inputs, outputs = tuple(self.input_names), tuple(self.output_names)
+        where = f"test case {self.name!r}"
+        t, U, Y = check_signals(where, self.t, self.U, self.Y, inputs, outputs)
+        extras = {}
+        for key, val in dict(self.extras).items():
+            arr = np.asarray(val, dtype=float)
+            if arr.shape != t.shape:
+                raise DataError(f"{where}: extra signal {key!r} has shape {arr.shape}, expected {t.shape}")
+            if not np.all(np.isfinite(arr)):
+                raise DataError(f"{where}: extra signal {key!r} contains NaN/inf")
+            extras[key] = arr
+        names = ("t",) + inputs + outputs + tuple(extras)
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise DataError(f"{where}: duplicate signal names {sorted(dup)}")
+        for arr in (t, U, Y, *extras.values()):
+            arr.flags.writeable = False
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "U", U)
+        object.__setattr__(self, "Y", Y)
+        object.__setattr__(self, "input_names", inputs)
+        object.__setattr__(self, "output_names", outputs)
+        object.__setattr__(self, "extras", extras)
+
+    @classmethod
+    def from_signals(cls, name, t, signals: dict, inputs, outputs, group="default"):
+        """Build a case from a dict of named signals (each (K,)); unlisted signals become extras."""
+        missing = [s for s in (*inputs, *outputs) if s not in signals]
+        if missing:
+            raise DataError(f"test case {name!r}: missing signals {missing}")
+        K = np.size(t)
+        U = np.column_stack([signals[s] for s in inputs]) if inputs else np.zeros((K, 0))
+        Y = np.column_stack([signals[s] for s in outputs])
+        extras = {k: v for k, v in signals.items() if k not in inputs and k not in outputs and k != "t"}
+        return cls(name, group, t, U, Y, tuple(inputs), tuple(outputs), extras)
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    @property
+    def signals(self) -> dict:
+        """All signals by name (inputs, outputs, extras)."""
+        out = {n: self.U[:, i] for i, n in enumerate(self.input_names)}
+        out.update({n: self.Y[:, i] for i, n in enumerate(self.output_names)})
+        out.update(self.extras)
+        return out
+
+    def signal(self, name: str) -> np.ndarray:
+        """One signal by name."""
+        sig = self.signals
+        if name == "t":
+            return self.t
+        if name not in sig:
+            raise DataError(f"test case {self.name!r} has no signal {name!r}; it has {sorted(sig)}")
+        return sig[name]
+
+    def segment(self, t0: float, t1: float) -> "TestCase":
+        """The samples with ``t0 <= t <= t1`` as a new case (at least 2 samples)."""
+        keep = (self.t >= t0) & (self.t <= t1)
+        if keep.sum() < 2:
+            raise DataError(f"test case {self.name!r}: segment [{t0}, {t1}] holds fewer than 2 samples")
+        return TestCase(f"{self.name}[{t0:g},{t1:g}]", self.group, self.t[keep], self.U[keep], self.Y[keep],
+                        self.input_names, self.output_names, {k: v[keep] for k, v in self.extras.items()})  # fmt: skip
+
+    def decimate(self, k: int) -> "TestCase":
+        """Every ``k``-th sample (inputs stay piecewise constant on the coarser grid)."""
+        k = int(k)
+        if k < 1:
+            raise DataError(f"decimation factor must be >= 1, got {k}")
+        if k == 1:
+            return self
+        sl = slice(None, None, k)
+        return TestCase(self.name, self.group, self.t[sl], self.U[sl], self.Y[sl], self.input_names,
+                        self.output_names, {key: v[sl] for key, v in self.extras.items()})  # fmt: skip
+
+    def select(self, inputs, outputs) -> "TestCase":
+        """Re-arrange the case to the given input/output names (signals may swap roles, e.g. extras -> inputs)."""
+        sig = self.signals
+        missing = [s for s in (*inputs, *outputs) if s not in sig]
+        if missing:
+            raise DataError(f"test case {self.name!r}: missing signals {missing}; it has {sorted(sig)}")
+        return TestCase.from_signals(self.name, self.t, sig, tuple(inputs), tuple(outputs), self.group)
+
+    def case_arrays(self, model):
+        """``(t, U, Y)`` in the model's input and output order, as writeable float64 copies.
+
+        Parameters
+        ----------
+        model : reachconf.Model
+            Supplies ``input_names`` and ``output_names`` (and ``m``, ``p``).
+
+        Returns
+        -------
+        t : ndarray (K,)
+        U : ndarray (K, m)
+        Y : ndarray (K, p)
+
+        Raises
+        ------
+        DataError
+            Naming the case, the model and the signals the case lacks.
+        """
+        if self.input_names == model.input_names and self.output_names == model.output_names:
+            t, U, Y = self.t, self.U, self.Y
+        else:
+            try:
+                sel = self.select(model.input_names, model.output_names)
+            except DataError as exc:
+                raise DataError(f"test case {self.name!r} does not fit model {model.name!r}: {exc}") from None
+            t, U, Y = sel.t, sel.U, sel.Y
+        # writeable contiguous copies: the compiled kernels take mutable arrays
+        t = np.array(t, dtype=float)
+        U = np.array(np.asarray(U, dtype=float).reshape(t.size, model.m), order="C")
+        Y = np.array(np.asarray(Y, dtype=float).reshape(t.size, model.p), order="C")
+        return t, U, Y
+
+    def rename(self, mapping: dict) -> "TestCase":
+        sig = {mapping.get(k, k): v for k, v in self.signals.items()}
+        ins = tuple(mapping.get(n, n) for n in self.input_names)
+        outs = tuple(mapping.get(n, n) for n in self.output_names)
+        return TestCase.from_signals(self.name, self.t, sig, ins, outs, self.group)
+
+    def __repr__(self):
+        return (f"TestCase({self.name!r}, group={self.group!r}, K={self.t.size}, "
+                f"t=[{self.t[0]:g}, {self.t[-1]:g}], inputs={self.input_names}, outputs={self.output_names})")  # fmt: skip
+
+
+class TestSuite:
+    """An ordered collection of :class:`TestCase` (iterable, indexable by position or name)."""
+
+    __test__ = False
+
+    def __init__(self, cases, name: str = "suite"):
+        self.cases = list(cases)
+        self.name = name
+        if not self.cases:
+            raise DataError(f"test suite {name!r} is empty")
+        names = [c.name for c in self.cases]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise DataError(f"test suite {name!r}: duplicate case names {sorted(dup)}")
+
+    def __iter__(self):
+        return iter(self.cases)
+
+    def __len__(self):
+        return len(self.cases)
+
+    def __getitem__(self, key):
+        if isinstance(key, str):
+            for c in self.cases:
+                if c.name == key:
+                    return c
+            raise KeyError(key)
+        return self.cases[key]
+
+    def groups(self) -> dict:
+        """Group name -> list of cases, in order of first appearance."""
+        out: dict = {}
+        for c in self.cases:
+            out.setdefault(c.group, []).append(c)
+        return out
+
+    def select(self, group=None, names=None) -> "TestSuite":
+        """Sub-suite of one group (or a list of groups) and/or the given case names."""
+        cases = self.cases
+        if group is not None:
+            groups = {group} if isinstance(group, str) else set(group)
+            unknown = groups - set(self.groups())
+            if unknown:
+                raise DataError(f"test suite {self.name!r} has no group {sorted(unknown)}; groups: {list(self.groups())}")
+            cases = [c for c in cases if c.group in groups]
+        if names is not None:
+            names = set(names)
+            cases = [c for c in cases if c.name in names]
+        return TestSuite(cases, name=self.name)
+
+    def filter(self, predicate) -> "TestSuite":
+        return TestSuite([c for c in self.cases if predicate(c)], name=self.name)
+
+    def map(self, fn) -> "TestSuite":
+        return TestSuite([fn(c) for c in self.cases], name=self.name)
+
+    def __repr__(self):
+        return f"TestSuite({self.name!r}, {len(self)} cases, groups={list(self.groups())})"
+
+
+def case_arrays(model, case):
+    """``case.case_arrays(model)`` for a case passed as an argument, checked to be a :class:`TestCase`.
+
+    Parameters
+    ----------
+    model : reachconf.Model
+    case : TestCase
+
+    Returns
+    -------
+    t, U, Y : ndarray
+        See :meth:`TestCase.case_arrays`.
+
+    Raises
+    ------
+    DataError
+        If ``case`` is not a TestCase (e.g. a whole suite) or lacks the model's signals.
+    """
+    if not isinstance(case, TestCase):
+        hint = "; pass one case of the suite (suite[0])" if isinstance(case, TestSuite) else ""
+        raise DataError(f"case must be a reachconf TestCase, got {type(case).__name__}{hint}")
+    return case.case_arrays(model)

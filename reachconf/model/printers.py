@@ -1,0 +1,190 @@
+"""Printers of the generated model code: point expressions and straight-line interval code.
+
+:class:`PointPrinter` prints a sympy expression as plain Python over the
+``math`` module (numba compiles it); :class:`IntervalEmitter` turns an
+expression into straight-line calls of the outward-rounded interval kernel
+:mod:`reachconf_kernels.interval` (``I.add``, ``I.mul``, ...), with guards for
+operations that are undefined over some intervals (division by an interval
+containing 0, logarithms and roots of non-positive intervals, tangents across
+a pole).  Used by :mod:`reachconf.model.codegen`.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+import sympy as sp
+from sympy.printing.pycode import PythonCodePrinter
+
+from reachconf.errors import ModelError
+
+__all__ = ["PointPrinter", "point_code", "interval_constant", "IntervalEmitter"]
+
+
+class PointPrinter(PythonCodePrinter):
+    """Plain-Python printer using the ``math`` module (numba compiles it)."""
+
+    def _print_Rational(self, expr):
+        return f"({float(expr.p)!r}/{float(expr.q)!r})"
+
+    def _print_Float(self, expr):
+        return repr(float(expr))
+
+    def _print_Integer(self, expr):
+        return f"{float(expr)!r}"
+
+    def _print_Pow(self, expr, rational=False):
+        base, exp = expr.as_base_exp()
+        if exp.is_Integer and abs(int(exp)) <= 8:
+            k = int(exp)
+            b = self.parenthesize(base, 100)
+            if k == 0:
+                return "1.0"
+            prod = "*".join([b] * abs(k))
+            return f"({prod})" if k > 0 else f"(1.0/({prod}))"
+        if exp == sp.Rational(1, 2):
+            return f"math.sqrt({self._print(base)})"
+        if exp == sp.Rational(-1, 2):
+            return f"(1.0/math.sqrt({self._print(base)}))"
+        return f"math.pow({self._print(base)}, {self._print(exp)})"
+
+
+_POINT = PointPrinter({"fully_qualified_modules": True, "standard": "python3"})
+
+
+def point_code(expr) -> str:
+    """Python source of a point evaluation of ``expr`` (``math`` functions, float constants)."""
+    return _POINT.doprint(expr)
+
+
+def interval_constant(value) -> tuple[str, str]:
+    """Outward-rounded float bounds of an exact sympy number."""
+    if isinstance(value, (sp.Integer, sp.Rational)):
+        frac = Fraction(int(value.p), int(value.q))
+    elif isinstance(value, sp.Float):
+        frac = Fraction(float(value))  # a sympy Float written by the user is taken as the double it denotes
+    else:  # pi, E, ...: evaluate at high precision
+        frac = Fraction(sp.Rational(sp.N(value, 40)).p, sp.Rational(sp.N(value, 40)).q)
+        approx = float(frac)
+        return repr(float(np.nextafter(approx, -np.inf))), repr(float(np.nextafter(approx, np.inf)))
+    approx = float(frac)
+    if Fraction(approx) == frac:
+        return repr(approx), repr(approx)
+    lo = approx if Fraction(approx) < frac else float(np.nextafter(approx, -np.inf))
+    hi = approx if Fraction(approx) > frac else float(np.nextafter(approx, np.inf))
+    return repr(lo), repr(hi)
+
+
+class IntervalEmitter:
+    """Turns sympy expressions into straight-line interval code (pairs of locals)."""
+
+    def __init__(self, var_map: dict, guards: list, indent: str = "    "):
+        self.var_map = dict(var_map)  # Symbol -> (lo, hi) code strings
+        self.lines: list[str] = []
+        self.guards = guards
+        self.indent = indent
+        self.counter = 0
+        self.memo: dict = {}
+
+    def _new(self) -> tuple[str, str]:
+        self.counter += 1
+        return f"v{self.counter}_lo", f"v{self.counter}_hi"
+
+    def _call(self, fn: str, *args: str) -> tuple[str, str]:
+        lo, hi = self._new()
+        self.lines.append(f"{self.indent}{lo}, {hi} = I.{fn}({', '.join(args)})")
+        return lo, hi
+
+    def _guard(self, condition: str, what: str) -> None:
+        self.guards.append(what)
+        self.lines.append(f"{self.indent}if {condition}:")
+        self.lines.append(f"{self.indent}    return {len(self.guards)}")
+
+    def emit(self, expr) -> tuple[str, str]:
+        if expr in self.var_map:
+            return self.var_map[expr]
+        key = expr
+        if key in self.memo:
+            return self.memo[key]
+        result = self._emit(expr)
+        self.memo[key] = result
+        return result
+
+    def _emit(self, expr) -> tuple[str, str]:
+        if expr.is_Number or isinstance(expr, sp.NumberSymbol):
+            return interval_constant(expr)
+        if expr.is_Symbol:
+            raise ModelError(f"internal error: symbol {expr} has no interval value")
+        if expr.is_Add:
+            args = list(expr.args)
+            acc = self.emit(args[0])
+            for a in args[1:]:
+                acc = self._call("add", *acc, *self.emit(a))
+            return acc
+        if expr.is_Mul:
+            coeff, rest = expr.as_coeff_Mul()
+            if coeff == -1:
+                return self._call("neg", *self.emit(rest))
+            args = list(expr.args)
+            acc = self.emit(args[0])
+            for a in args[1:]:
+                acc = self._call("mul", *acc, *self.emit(a))
+            return acc
+        if expr.is_Pow:
+            base, exp = expr.as_base_exp()
+            b = self.emit(base)
+            if exp.is_Integer:
+                k = int(exp)
+                if k == 2:
+                    return self._call("sqr", *b)
+                if k < 0:
+                    self._guard(f"{b[0]} <= 0.0 <= {b[1]}", f"division by an interval containing 0 in {expr}")
+                    if k == -1:
+                        return self._call("div", "1.0", "1.0", *b)
+                return self._call("pow", *b, str(k))
+            if exp == sp.Rational(1, 2):
+                self._guard(f"{b[0]} < 0.0", f"square root of a negative interval in {expr}")
+                return self._call("sqrt", *b)
+            if exp == sp.Rational(-1, 2):
+                self._guard(f"{b[0]} <= 0.0", f"square root of a non-positive interval in {expr}")
+                s = self._call("sqrt", *b)
+                return self._call("div", "1.0", "1.0", *s)
+            self._guard(f"{b[0]} <= 0.0", f"power of a non-positive interval in {expr}")
+            lg = self._call("log", *b)
+            e = self.emit(exp)
+            return self._call("exp", *self._call("mul", *e, *lg))
+        if isinstance(expr, sp.exp):
+            return self._call("exp", *self.emit(expr.args[0]))
+        if isinstance(expr, sp.log):
+            if len(expr.args) != 1:
+                raise ModelError(f"log with a base is not supported: {expr}")
+            a = self.emit(expr.args[0])
+            self._guard(f"{a[0]} <= 0.0", f"logarithm of a non-positive interval in {expr}")
+            return self._call("log", *a)
+        if isinstance(expr, sp.sin):
+            return self._call("sin", *self.emit(expr.args[0]))
+        if isinstance(expr, sp.cos):
+            return self._call("cos", *self.emit(expr.args[0]))
+        if isinstance(expr, sp.tan):
+            a = self.emit(expr.args[0])
+            c = self._call("cos", *a)
+            self._guard(f"{c[0]} <= 0.0 <= {c[1]}", f"tangent across a pole in {expr}")
+            return self._call("div", *self._call("sin", *a), *c)
+        if isinstance(expr, sp.atan):
+            return self._call("atan", *self.emit(expr.args[0]))
+        if isinstance(expr, sp.tanh):
+            return self._call("tanh", *self.emit(expr.args[0]))
+        if isinstance(expr, sp.Abs):
+            return self._call("abs", *self.emit(expr.args[0]))
+        if isinstance(expr, (sp.Min, sp.Max)):
+            fn = "min" if isinstance(expr, sp.Min) else "max"
+            args = list(expr.args)
+            acc = self.emit(args[0])
+            for a in args[1:]:
+                acc = self._call(fn, *acc, *self.emit(a))
+            return acc
+        raise ModelError(
+            f"the interval code generator does not support {type(expr).__name__} (in {expr}); "
+            f"rewrite the model with +, -, *, /, powers, sqrt, exp, log, sin, cos, tan, atan, tanh, Abs, Min, Max"
+        )
