@@ -16,7 +16,7 @@ In-loop enclosure of the robot's reachable set over period j: the disk around th
 mid-period with radius ``R_ROBOT + |d_xy| + 2 sin(delta/2) * s(t_{j+1}) + v_j * 0.1 / 2`` — an arc
 of length L lies within L/2 of its midpoint, and a start pose off by (dx, dy, dphi) with the same
 commands moves every point of the path by ``d + (e^{i dphi} - 1)(p(t) - p(0))`` (a rigid rotation
-about the start), whose norm is at most ``|d| + 2 sin(|dphi|/2) * s(t)``.  ``tests/test_robot.py``
+about the start), whose norm is at most ``|d| + 2 sin(|dphi|/2) * s(t)``.  ``tests/usecases/test_robot.py``
 checks that these disks enclose the reachable sets that ``reachconf.reach`` computes for
 ``diff_drive`` (and sampled trajectories).
 """
