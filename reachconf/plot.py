@@ -9,13 +9,8 @@ import numpy as np
 
 from reachconf.errors import SetError
 from reachconf.io.atomic import atomic_write
-from reachconf.sets.union import SetUnion
 
 __all__ = ["plot_tube", "save_figure"]
-
-
-def _pieces(s):
-    return s.pieces if isinstance(s, SetUnion) else (s,)
 
 
 def plot_tube(tube, dims=("X", "Y"), ax=None, color="C0", alpha=0.35, outline=True, label=None):
@@ -32,10 +27,10 @@ def plot_tube(tube, dims=("X", "Y"), ax=None, color="C0", alpha=0.35, outline=Tr
         raise SetError(f"plot needs two dimensions, got {dims!r}")
     if ax is None:
         _, ax = plt.subplots(figsize=(8, 5))
-    polys = [p.project(idx).polygon() for s in tube.time_interval_sets for p in _pieces(s)]
+    polys = [p.project(idx).polygon() for s in tube.time_interval_sets for p in s.pieces]
     ax.add_collection(PolyCollection(polys, facecolors=color, edgecolors="none", alpha=alpha, label=label))
     if outline:
-        outs = [p.project(idx).polygon() for s in tube.time_point_sets for p in _pieces(s)]
+        outs = [p.project(idx).polygon() for s in tube.time_point_sets for p in s.pieces]
         ax.add_collection(PolyCollection(outs, facecolors="none", edgecolors=color, linewidths=0.4))
     allpts = np.vstack(polys)
     lo, hi = allpts.min(axis=0), allpts.max(axis=0)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from reachconf.errors import OptionsError, ReachError
-from reachconf.reach_options import ALGORITHMS, REDUCTIONS, ReachOptions
+from reachconf.reach_options import ReachOptions
 from reachconf.sets.convert import as_zonotope
 from reachconf.sets.core import Zonotope
 from reachconf.tube import ReachTube
@@ -288,8 +288,8 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None)
     gmax = int(n * max(options.zonotope_order, 1.0)) + n + 1
     me = np.broadcast_to(np.asarray(options.max_error, dtype=float), (n,)).copy()
     params = model.param_vector
-    algorithm = ALGORITHMS.index(options.algorithm)
-    reduce_method = REDUCTIONS.index(options.reduction)
+    algorithm = options.alg.kernel_code
+    reduce_method = options.reduction_method.kernel_code
 
     def new_store():
         return dict(

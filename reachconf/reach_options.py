@@ -1,22 +1,140 @@
-"""Options of :func:`reachconf.reach`: :class:`ReachOptions` (CORA's reach options, typed)."""
+"""Options of :func:`reachconf.reach`: :class:`ReachOptions` and the reach algorithms as option types.
+
+As in ReachabilityAnalysis.jl, an algorithm is a small type naming its paper:
+:class:`ConservativeLinearization` (``"lin"``, Althoff et al. 2008) and
+:class:`ConservativePolynomialization` (``"poly"``, Althoff 2013).  The
+strings are shorthands: ``ReachOptions(algorithm="lin")`` and
+``ReachOptions(algorithm=ConservativeLinearization())`` are the same reach;
+``options.alg`` is the algorithm as an instance either way.  Order-reduction
+methods are types too (:mod:`reachconf.sets.reduction`: ``Girard``, ``PCA``).
+
+Adding an algorithm is local: a frozen dataclass subclass of
+:class:`ReachAlgorithm` with a ``name``, the paper in its docstring, its own
+fields (with defaults) and, if it needs them, ``tensor_orders`` and
+:meth:`~ReachAlgorithm.validate`; decorate it with :func:`register_algorithm`
+so that its name works as a shorthand.  :func:`reachconf.reach.reach_run`
+dispatches on ``options.alg``: algorithms of the compiled loop by their
+``kernel_code``, others by their type.  Making one the default is the default
+of :attr:`ReachOptions.algorithm`.
+"""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from reachconf.errors import OptionsError
+from reachconf.sets.reduction import ReductionMethod, reduction_method
 
-__all__ = ["ReachOptions", "ALGORITHMS", "REDUCTIONS", "SPLIT_METHODS"]
+__all__ = ["ReachOptions", "ReachAlgorithm", "ConservativeLinearization", "ConservativePolynomialization",
+           "ALGORITHM_TYPES", "reach_algorithm", "register_algorithm", "SPLIT_METHODS"]  # fmt: skip
 
-#: reach algorithms (kernel code = index): conservative linearisation, conservative polynomialisation
-ALGORITHMS = ("lin", "poly")
-#: zonotope order-reduction methods (kernel code = index)
-REDUCTIONS = ("girard", "pca")
 #: how a set is split when its abstraction error cannot be bounded
 SPLIT_METHODS = ("generator", "box")
+
+
+class ReachAlgorithm:
+    """Base of the reach algorithms (see the module docstring)."""
+
+    #: the shorthand accepted in place of an instance
+    name: ClassVar[str] = ""
+    #: the algorithm's number in the compiled reach loop (None: it runs its own loop)
+    kernel_code: ClassVar[int | None] = None
+    #: tensor orders of the Lagrange remainder the algorithm supports
+    tensor_orders: ClassVar[tuple] = (2, 3)
+    #: the tensor order used when ``ReachOptions.tensor_order`` is None
+    default_tensor_order: ClassVar[int] = 2
+
+    def validate(self, options: "ReachOptions") -> None:
+        """Raise :class:`OptionsError` if ``options`` do not fit the algorithm (here: the tensor order)."""
+        order = options.effective_tensor_order
+        if order not in self.tensor_orders:
+            need = f"={self.tensor_orders[0]}" if len(self.tensor_orders) == 1 else f" in {self.tensor_orders}"
+            raise OptionsError(f"ReachOptions: algorithm {self.name!r} needs tensor_order{need}")
+
+    def __str__(self):
+        return self.name
+
+
+@dataclass(frozen=True)
+class ConservativeLinearization(ReachAlgorithm):
+    """Conservative linearisation (shorthand ``"lin"``).
+
+    Each step linearises ``f`` at the centre of the set, propagates the linear
+    system with uncertain inputs exactly (Taylor series of the exponential with
+    remainder) and adds the abstraction error, a Lagrange remainder bounded by
+    the interval Hessian over the set (tensor order 2) or by the Hessian at the
+    linearisation point plus the interval third-order tensor (tensor order 3),
+    found by CORA's iterative fixed point.
+
+    References
+    ----------
+    M. Althoff, O. Stursberg, M. Buss, "Reachability analysis of nonlinear
+    systems with uncertain parameters using conservative linearization",
+    IEEE CDC 2008, pp. 4042–4048.
+    """
+
+    name: ClassVar[str] = "lin"
+    kernel_code: ClassVar[int | None] = 0
+    tensor_orders: ClassVar[tuple] = (2, 3)
+    default_tensor_order: ClassVar[int] = 2
+
+
+@dataclass(frozen=True)
+class ConservativePolynomialization(ReachAlgorithm):
+    """Conservative polynomialisation (shorthand ``"poly"``; tensor order 3).
+
+    The quadratic term of the Taylor expansion is kept as a static
+    polynomial part (the ``quad_map`` of the Hessian over the start set of
+    each step) instead of being bounded with the remainder, which keeps
+    sets tighter where ``f`` is strongly nonlinear.
+
+    References
+    ----------
+    M. Althoff, "Reachability analysis of nonlinear systems using
+    conservative polynomialization and non-convex sets", HSCC 2013,
+    pp. 173–182.
+    """
+
+    name: ClassVar[str] = "poly"
+    kernel_code: ClassVar[int | None] = 1
+    tensor_orders: ClassVar[tuple] = (3,)
+    default_tensor_order: ClassVar[int] = 3
+
+
+#: name -> algorithm type
+ALGORITHM_TYPES: dict[str, type[ReachAlgorithm]] = {}
+
+
+def register_algorithm(cls: type[ReachAlgorithm]) -> type[ReachAlgorithm]:
+    """Make a :class:`ReachAlgorithm` subclass known by its ``name`` (usable as a decorator)."""
+    if not (isinstance(cls, type) and issubclass(cls, ReachAlgorithm) and cls.name):
+        raise OptionsError(f"register_algorithm needs a ReachAlgorithm subclass with a name, got {cls!r}")
+    ALGORITHM_TYPES[cls.name] = cls
+    return cls
+
+
+for _cls in (ConservativeLinearization, ConservativePolynomialization):
+    register_algorithm(_cls)
+
+
+def reach_algorithm(value) -> ReachAlgorithm:
+    """The algorithm for a name (``"lin"``, ``"poly"``) or an instance.
+
+    Raises
+    ------
+    OptionsError
+        For an unknown name or another type.
+    """
+    if isinstance(value, ReachAlgorithm):
+        return value
+    if isinstance(value, str) and value in ALGORITHM_TYPES:
+        return ALGORITHM_TYPES[value]()
+    raise OptionsError(f"ReachOptions.algorithm must be one of {tuple(ALGORITHM_TYPES)} or an instance of "
+                       f"{', '.join(c.__name__ for c in ALGORITHM_TYPES.values())}, got {value!r}")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -25,8 +143,10 @@ class ReachOptions:
 
     Parameters
     ----------
-    algorithm : {"lin", "poly"}, default "lin"
-        Conservative linearisation or polynomialisation (Althoff 2008/2013).
+    algorithm : str or ReachAlgorithm, default "lin"
+        :class:`ConservativeLinearization` (``"lin"``, Althoff 2008) or
+        :class:`ConservativePolynomialization` (``"poly"``, Althoff 2013);
+        ``alg`` is it as an instance.
     time_step : float or None, default None
         Largest integration step.  ``None``: one hundredth of the horizon,
         capped by the spacing of the sample times.
@@ -42,8 +162,10 @@ class ReachOptions:
     tensor_order : int or None, default None
         2 (interval Hessian) or 3 (Hessian at the point + interval third-order
         tensor).  ``None``: 2 for "lin", 3 for "poly".
-    reduction : {"girard", "pca"}, default "girard"
-        Order-reduction method.
+    reduction : str or ReductionMethod, default "girard"
+        Order-reduction method: :class:`~reachconf.sets.reduction.Girard`
+        (``"girard"``, Girard 2005) or :class:`~reachconf.sets.reduction.PCA`
+        (``"pca"``, Kopetzki 2017); ``reduction_method`` is it as an instance.
     max_splits : int, default 8
         How many times a set may be split when its error cannot be bounded.
     split_method : {"generator", "box"}, default "generator"
@@ -61,14 +183,14 @@ class ReachOptions:
         Show a tqdm bar; ``None``: when stderr is a terminal and the run is long.
     """
 
-    algorithm: str = "lin"
+    algorithm: str | ReachAlgorithm = "lin"
     time_step: float | None = None
     taylor_terms: int = 4
     zonotope_order: float = 20.0
     intermediate_order: float = 20.0
     error_order: float = 5.0
     tensor_order: int | None = None
-    reduction: str = "girard"
+    reduction: str | ReductionMethod = "girard"
     max_splits: int = 8
     split_method: str = "generator"
     max_error: float | tuple = math.inf
@@ -77,8 +199,7 @@ class ReachOptions:
     progress: bool | None = None
 
     def __post_init__(self):
-        if self.algorithm not in ALGORITHMS:
-            raise OptionsError(f"ReachOptions.algorithm must be one of {ALGORITHMS}, got {self.algorithm!r}")
+        alg = reach_algorithm(self.algorithm)
         if self.time_step is not None and not (math.isfinite(self.time_step) and self.time_step > 0):
             raise OptionsError(f"ReachOptions.time_step must be a positive number, got {self.time_step!r}")
         if not (isinstance(self.taylor_terms, (int, np.integer)) and 1 <= self.taylor_terms <= 20):
@@ -90,10 +211,13 @@ class ReachOptions:
         to = self.effective_tensor_order
         if to not in (2, 3):
             raise OptionsError(f"ReachOptions.tensor_order must be 2 or 3, got {self.tensor_order!r}")
-        if self.algorithm == "poly" and to != 3:
-            raise OptionsError("ReachOptions: algorithm 'poly' needs tensor_order=3")
-        if self.reduction not in REDUCTIONS:
-            raise OptionsError(f"ReachOptions.reduction must be one of {REDUCTIONS}, got {self.reduction!r}")
+        alg.validate(self)
+        try:
+            reduction = reduction_method(self.reduction)
+        except OptionsError as exc:
+            raise OptionsError(f"ReachOptions.reduction: {exc}") from None
+        if reduction.kernel_code is None:
+            raise OptionsError(f"ReachOptions.reduction: {reduction.name!r} is not available in the compiled reach loop")
         if self.split_method not in SPLIT_METHODS:
             raise OptionsError(f"ReachOptions.split_method must be one of {SPLIT_METHODS}, got {self.split_method!r}")
         if not (isinstance(self.max_splits, (int, np.integer)) and self.max_splits >= 0):
@@ -107,7 +231,18 @@ class ReachOptions:
             raise OptionsError("ReachOptions.rounding must be in [0, 1e-6)")
 
     @property
+    def alg(self) -> ReachAlgorithm:
+        """The reach algorithm as an instance (``algorithm`` may be its name)."""
+        return reach_algorithm(self.algorithm)
+
+    @property
+    def reduction_method(self) -> ReductionMethod:
+        """The order-reduction method as an instance (``reduction`` may be its name)."""
+        return reduction_method(self.reduction)
+
+    @property
     def effective_tensor_order(self) -> int:
+        """``tensor_order``, or the algorithm's default when it is None."""
         if self.tensor_order is None:
-            return 3 if self.algorithm == "poly" else 2
+            return reach_algorithm(self.algorithm).default_tensor_order
         return int(self.tensor_order)

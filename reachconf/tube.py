@@ -13,6 +13,7 @@ from reachconf.errors import DataError, ReachError, SetError
 from reachconf.io.atomic import atomic_write
 from reachconf.model.outputs import output_enclosure
 from reachconf.plot import plot_tube
+from reachconf.sets.convert import as_zonotope
 from reachconf.sets.core import Interval, Zonotope
 from reachconf.sets.union import SetUnion
 
@@ -142,7 +143,7 @@ class ReachTube:
         if s.size == 0:
             raise ReachError(f"time {t} is outside the tube [{self.times[0]}, {self.times[-1]}]")
         sets = [self.time_interval_sets[i] for i in s]
-        return sets[0] if len(sets) == 1 else SetUnion([p for st in sets for p in (st if isinstance(st, SetUnion) else [st])])
+        return sets[0] if len(sets) == 1 else SetUnion([p for st in sets for p in st.pieces])
 
     def project(self, dims) -> "ReachTube":
         """The tube projected onto some states (names or indices)."""
@@ -214,7 +215,7 @@ class ReachTube:
                 u = None if inputs is None else np.asarray(inputs, dtype=float)[i]
                 S = output_enclosure(self.model, S, u)
             if V is not None:
-                S = S + (V.to_zonotope() if isinstance(V, Interval) else V)
+                S = S + as_zonotope(V, name="V")
             if S.dim != Y.shape[1]:
                 raise DataError(f"Y has {Y.shape[1]} columns, the set has dimension {S.dim}")
             inside[i] = bool(S.contains(Y[i], tol=tol))
@@ -234,7 +235,7 @@ class ReachTube:
         for prefix, sets in (("tp", self.time_point_sets), ("ti", self.time_interval_sets)):
             cs, Gs, owner = [], [], []
             for k, s in enumerate(sets):
-                for piece in (s if isinstance(s, SetUnion) else [s]):
+                for piece in s.pieces:
                     cs.append(piece.center)
                     Gs.append(piece.generators)
                     owner.append(k)
@@ -283,4 +284,6 @@ def _plain(v):
         return [_plain(x) for x in v]
     if isinstance(v, float) and not np.isfinite(v):
         return str(v)
-    return v
+    if v is None or isinstance(v, (bool, int, float, str)):
+        return v
+    return str(v)  # an algorithm or reduction method: its name

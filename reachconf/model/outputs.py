@@ -85,7 +85,7 @@ def output_enclosure(model, S, u=None):
     ReachError
         If the interval Jacobian of ``h`` is not defined over ``S``.
     """
-    if isinstance(S, SetUnion):
+    if len(S.pieces) > 1:
         return SetUnion([output_enclosure(model, p, u) for p in S.pieces])
     u = np.zeros(model.m) if u is None else np.asarray(u, dtype=float).reshape(model.m)
     aff = affine_output(model)

@@ -11,52 +11,35 @@ import math
 
 import numpy as np
 
-from reachconf.errors import SetError
+from reachconf.errors import OptionsError, SetError
 from reachconf.sets.containment import contains_points
+from reachconf.sets.reduction import reduction_method
+from reachconf.sets.validate import as_points, as_vector
 from reachconf_kernels import zonotope as zk
 
 __all__ = ["Interval", "Zonotope"]
 
 
-def _vector(value, name: str, allow_empty: bool = False) -> np.ndarray:
-    try:
-        arr = np.array(value, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        raise SetError(f"{name} must be numeric, got {value!r}") from None
-    if arr.size == 0 and not allow_empty:
-        raise SetError(f"{name} is empty")
-    if not np.all(np.isfinite(arr)):
-        raise SetError(f"{name} contains NaN or inf (unbounded sets are not allowed)")
-    arr = np.ascontiguousarray(arr)
-    arr.flags.writeable = False
-    return arr
-
-
-def _points(points, dim: int, name="points"):
-    P = np.asarray(points, dtype=np.float64)
-    single = P.ndim == 1
-    P = np.atleast_2d(P)
-    if P.shape[-1] != dim:
-        raise SetError(f"{name} must have {dim} columns, got shape {np.shape(points)}")
-    if not np.all(np.isfinite(P)):
-        raise SetError(f"{name} contains NaN or inf")
-    return np.ascontiguousarray(P), single
-
-
 class Interval:
-    """Axis-aligned box ``[lo, hi]`` (eq. 62–66 boxes, V and W sets).
+    """Axis-aligned box ``[lo, hi]`` (the boxes of eqs. 62–66, the sets V and W).
 
     Parameters
     ----------
     lo, hi : array_like (n,) or scalars
+        Bounds, ``lo <= hi``, finite.
+
+    Raises
+    ------
+    SetError
+        On non-finite bounds, ``lo > hi`` or different lengths.
     """
 
     __slots__ = ("lo", "hi")
     __array_ufunc__ = None  # make ``A @ box`` call __rmatmul__ instead of numpy
 
     def __init__(self, lo, hi):
-        lo = _vector(lo, "lo", allow_empty=True)
-        hi = _vector(hi, "hi", allow_empty=True)
+        lo = as_vector(lo, "lo", allow_empty=True)
+        hi = as_vector(hi, "hi", allow_empty=True)
         if lo.shape != hi.shape:
             raise SetError(f"lo has {lo.size} entries but hi has {hi.size}")
         bad = np.nonzero(lo > hi)[0]
@@ -74,37 +57,55 @@ class Interval:
 
     @property
     def dim(self) -> int:
+        """Dimension ``n``."""
         return self.lo.size
 
     @property
+    def pieces(self) -> tuple:
+        """The convex sets whose union is this set: ``(self,)``."""
+        return (self,)
+
+    @property
     def center(self) -> np.ndarray:
+        """Midpoint ``(lo + hi) / 2``."""
         return 0.5 * (self.lo + self.hi)
 
     @property
     def radius(self) -> np.ndarray:
+        """Half-widths ``(hi - lo) / 2``."""
         return 0.5 * (self.hi - self.lo)
 
     def volume(self) -> float:
+        """Product of the widths."""
         return float(np.prod(self.hi - self.lo))
 
     def to_zonotope(self) -> "Zonotope":
+        """The same box as a :class:`Zonotope` (one generator per non-degenerate dimension)."""
         c, G = zk.from_interval(np.asarray(self.lo), np.asarray(self.hi))
         return Zonotope.from_kernel(c, G)
 
     def interval(self) -> "Interval":
+        """The interval hull: the box itself."""
         return self
 
+    def linear_map(self, M) -> "Zonotope":
+        """``M @ self``: a :class:`Zonotope` (the image of a box is not a box)."""
+        return M @ self.to_zonotope()
+
     def contains(self, points, tol: float = 0.0):
-        P, single = _points(points, self.dim)
+        """Membership of one point (bool) or of the rows of ``points`` (boolean array), up to ``tol``."""
+        P, single = as_points(points, self.dim)
         r = np.all((P >= self.lo - tol) & (P <= self.hi + tol), axis=1)
         return bool(r[0]) if single else r
 
     def hull(self, other: "Interval") -> "Interval":
-        other = _as_interval(other)
+        """Smallest box containing both (``other``: any set, by its interval hull)."""
+        other = other.interval()
         return Interval(np.minimum(self.lo, other.lo), np.maximum(self.hi, other.hi))
 
     def intersection(self, other: "Interval") -> "Interval":
-        other = _as_interval(other)
+        """Intersection with the interval hull of ``other`` (:class:`SetError` if empty)."""
+        other = other.interval()
         return Interval(np.maximum(self.lo, other.lo), np.minimum(self.hi, other.hi))
 
     def scale(self, alpha: float) -> "Interval":
@@ -115,16 +116,19 @@ class Interval:
         return Interval(c - alpha * r, c + alpha * r)
 
     def is_subset(self, other: "Interval", tol: float = 0.0) -> bool:
-        other = _as_interval(other)
+        """Is the box inside the interval hull of ``other`` (up to ``tol``)?"""
+        other = other.interval()
         return bool(np.all(self.lo >= other.lo - tol) and np.all(self.hi <= other.hi + tol))
 
     def sample(self, n: int, rng=None) -> np.ndarray:
+        """``n`` points of the box, shape (n, dim): a quarter corners, the rest uniform."""
         rng = np.random.default_rng(rng)
         corners = np.where(rng.random((max(n // 4, 1), self.dim)) < 0.5, self.lo, self.hi)
         inner = rng.uniform(self.lo, self.hi, size=(n - corners.shape[0], self.dim))
         return np.vstack([corners, inner])[:n]
 
     def project(self, dims) -> "Interval":
+        """The box on the dimensions ``dims`` (indices)."""
         dims = list(dims)
         return Interval(self.lo[dims], self.hi[dims])
 
@@ -135,7 +139,7 @@ class Interval:
             return Interval(np.nextafter(self.lo + other.lo, -np.inf), np.nextafter(self.hi + other.hi, np.inf))
         if isinstance(other, Zonotope):
             return other + self
-        v = _vector(other, "point")
+        v = as_vector(other, "point")
         if v.size != self.dim:
             raise SetError(f"point has {v.size} entries, the interval {self.dim}")
         return Interval(np.nextafter(self.lo + v, -np.inf), np.nextafter(self.hi + v, np.inf))
@@ -152,22 +156,16 @@ class Interval:
         return hash((self.lo.tobytes(), self.hi.tobytes()))
 
     def plot(self, ax=None, dims=(0, 1), **style):
+        """Draw the projection on ``dims`` (see :meth:`Zonotope.plot`); returns the axes."""
         return self.to_zonotope().plot(ax, dims=dims, **style)
 
     def to_list(self):
+        """``[[lo_0, hi_0], ...]`` as plain floats (JSON, run files)."""
         return [[float(a), float(b)] for a, b in zip(self.lo, self.hi)]
 
     def __repr__(self):
         pairs = ", ".join(f"[{a:.6g}, {b:.6g}]" for a, b in zip(self.lo, self.hi))
         return f"Interval({pairs})"
-
-
-def _as_interval(x) -> Interval:
-    if isinstance(x, Interval):
-        return x
-    if isinstance(x, Zonotope):
-        return x.interval()
-    raise SetError(f"expected an Interval, got {type(x).__name__}")
 
 
 class Zonotope:
@@ -176,7 +174,14 @@ class Zonotope:
     Parameters
     ----------
     center : array_like (n,)
+        ``c``.
     generators : array_like (n, m), m >= 0
+        ``G``, one generator per column.
+
+    Raises
+    ------
+    SetError
+        On non-finite values or shapes that do not match.
     """
 
     __slots__ = ("center", "generators")
@@ -184,7 +189,7 @@ class Zonotope:
 
     def __init__(self, center, generators):
         # a 0-dimensional zonotope is allowed: it is R^0 = {()} (e.g. W of a model without disturbances)
-        c = _vector(center, "center", allow_empty=True)
+        c = as_vector(center, "center", allow_empty=True)
         try:
             G = np.array(generators, dtype=np.float64)
         except (TypeError, ValueError):
@@ -229,25 +234,39 @@ class Zonotope:
 
     @classmethod
     def from_interval(cls, interval: Interval) -> "Zonotope":
+        """The box ``interval`` as a zonotope."""
         return interval.to_zonotope()
 
     @property
     def dim(self) -> int:
+        """Dimension ``n``."""
         return self.center.size
 
     @property
     def order(self) -> float:
+        """Generators per dimension, ``m / n``."""
         return self.generators.shape[1] / self.dim
+
+    @property
+    def pieces(self) -> tuple:
+        """The convex sets whose union is this set: ``(self,)``."""
+        return (self,)
 
     def _cg(self):
         return self.center, self.generators
 
     def interval(self) -> Interval:
+        """Interval hull (exact: ``c ± sum |G|``, outward rounded)."""
         lo, hi = zk.interval_hull(*self._cg())
         return Interval(lo, hi)
 
     def to_zonotope(self) -> "Zonotope":
+        """The zonotope itself."""
         return self
+
+    def linear_map(self, M) -> "Zonotope":
+        """``M @ self`` (exact), for a matrix ``M`` (k, n)."""
+        return M @ self
 
     def __rmatmul__(self, M):
         M = np.asarray(M, dtype=np.float64)
@@ -270,25 +289,39 @@ class Zonotope:
                 raise SetError(f"cannot add an interval of dimension {other.dim} to a zonotope of dimension {self.dim}")
             c2, G2 = zk.add_interval(c, G, np.asarray(other.lo), np.asarray(other.hi))
             return Zonotope.from_kernel(c2, G2)
-        v = _vector(other, "point")
+        v = as_vector(other, "point")
         if v.size != self.dim:
             raise SetError(f"point has {v.size} entries, the zonotope {self.dim}")
         return Zonotope(c + v, G)
 
     __radd__ = __add__
 
-    def reduce(self, order: float, method: str = "girard") -> "Zonotope":
+    def reduce(self, order: float, method="girard") -> "Zonotope":
+        """An enclosing zonotope with at most ``order * dim`` generators.
+
+        Parameters
+        ----------
+        order : float
+            At least 1.
+        method : str or ReductionMethod, default "girard"
+            :class:`~reachconf.sets.reduction.Girard` (``"girard"``) or
+            :class:`~reachconf.sets.reduction.PCA` (``"pca"``).
+
+        Returns
+        -------
+        Zonotope
+        """
         if not (np.isfinite(order) and order >= 1):
             raise SetError(f"order must be >= 1, got {order!r}")
-        if method == "girard":
-            c, G = zk.reduce_girard(*self._cg(), float(order))
-        elif method == "pca":
-            c, G = zk.reduce_pca(*self._cg(), float(order))
-        else:
-            raise SetError(f"unknown reduction method {method!r}; use 'girard' or 'pca'")
+        try:
+            reduction = reduction_method(method)
+        except OptionsError as exc:
+            raise SetError(str(exc)) from None
+        c, G = reduction.reduce(*self._cg(), float(order))
         return Zonotope.from_kernel(c, G)
 
     def enclose(self, other: "Zonotope") -> "Zonotope":
+        """A zonotope enclosing the convex hull of both (Girard's enclosure)."""
         other = other.to_zonotope()
         if other.dim != self.dim:
             raise SetError(f"cannot enclose zonotopes of dimensions {self.dim} and {other.dim}")
@@ -296,11 +329,13 @@ class Zonotope:
         return Zonotope.from_kernel(c, G)
 
     def cartesian(self, other) -> "Zonotope":
+        """The Cartesian product ``self × other``."""
         other = other.to_zonotope()
         c, G = zk.cartesian_product(*self._cg(), *other._cg())
         return Zonotope.from_kernel(c, G)
 
     def quad_map(self, Q) -> "Zonotope":
+        """A zonotope enclosing ``{(x^T Q_i x)_i | x in self}`` for matrices ``Q`` (k, n, n) (CORA's quadMap)."""
         Q = np.ascontiguousarray(np.asarray(Q, dtype=np.float64))
         if Q.ndim != 3 or Q.shape[1:] != (self.dim, self.dim):
             raise SetError(f"Q must have shape (k, {self.dim}, {self.dim}), got {Q.shape}")
@@ -308,20 +343,24 @@ class Zonotope:
         return Zonotope.from_kernel(c, G)
 
     def compact(self, tol: float = 0.0) -> "Zonotope":
+        """The same set with parallel generators merged and generators of length <= ``tol`` dropped."""
         c, G = zk.compact(*self._cg(), float(tol))
         return Zonotope.from_kernel(c, G)
 
     def support(self, direction) -> float:
-        d = _vector(direction, "direction")
+        """Support function ``max_{x in Z} d^T x`` (outward rounded)."""
+        d = as_vector(direction, "direction")
         if d.size != self.dim:
             raise SetError(f"direction has {d.size} entries, the zonotope {self.dim}")
         return float(zk.support(*self._cg(), np.ascontiguousarray(d)))
 
     def bounds_along(self, direction):
-        d = _vector(direction, "direction")
+        """``(min, max)`` of ``d^T x`` over the zonotope."""
+        d = as_vector(direction, "direction")
         return tuple(float(v) for v in zk.bounds_along(*self._cg(), np.ascontiguousarray(d)))
 
     def project(self, dims) -> "Zonotope":
+        """The zonotope on the dimensions ``dims`` (indices)."""
         dims = [int(d) for d in dims]
         for d in dims:
             if not 0 <= d < self.dim:
@@ -329,6 +368,7 @@ class Zonotope:
         return Zonotope(self.center[dims], self.generators[dims])
 
     def scale(self, alpha: float) -> "Zonotope":
+        """Scale about the centre by ``alpha >= 0``."""
         if not (np.isfinite(alpha) and alpha >= 0):
             raise SetError(f"alpha must be a finite non-negative number, got {alpha!r}")
         return Zonotope(self.center, alpha * self.generators)
@@ -344,11 +384,13 @@ class Zonotope:
     def contains(self, points, tol: float = 1e-9):
         """Point containment: ``||p - c||_Z <= 1 + tol`` (zonotope norm), exact up to ``tol``.
 
-        Points outside the interval hull are rejected at once; points with a
-        least-norm coefficient vector in the unit box are accepted at once;
-        the rest are decided by an LP (HiGHS) each.
+        Points outside the interval hull are rejected at once; in 2-D the
+        polygon's half-spaces decide; otherwise a compiled simplex whose every
+        answer carries a checked certificate, and one LP (HiGHS) per point
+        without one (:func:`reachconf.sets.containment.contains_points`).
+        Returns a bool for one point, a boolean array for the rows of ``points``.
         """
-        P, single = _points(points, self.dim)
+        P, single = as_points(points, self.dim)
         res = contains_points(self.center, self.generators, P, tol)
         return bool(res[0]) if single else res
 
@@ -361,11 +403,22 @@ class Zonotope:
         return self.center + B @ self.generators.T
 
     def vertices_sample(self, n: int, rng=None) -> np.ndarray:
+        """``n`` random vertices (``b`` in {-1, 1}^m; possibly repeated or not extreme)."""
         rng = np.random.default_rng(rng)
         B = np.where(rng.random((n, self.generators.shape[1])) < 0.5, -1.0, 1.0)
         return self.center + B @ self.generators.T
 
     def plot(self, ax=None, dims=(0, 1), **style):
+        """Draw the projection on ``dims`` as a filled polygon; returns the axes.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+            New axes if None.
+        dims : pair of int
+        **style
+            Passed to the patch (``color`` for face and edge, ``alpha`` 0.4 by default).
+        """
         import matplotlib.pyplot as plt
         from matplotlib.patches import Polygon
 

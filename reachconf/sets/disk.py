@@ -99,6 +99,11 @@ class BoxDisk:
         """Dimension of the set."""
         return self.center.size
 
+    @property
+    def pieces(self) -> tuple:
+        """The convex sets whose union is this set: ``(self,)``."""
+        return (self,)
+
     def distance(self, points) -> np.ndarray:
         """Euclidean distance of points (..., n) from the box minus the radius (<= 0 inside the set)."""
         return box_disk_distance(np.asarray(points, dtype=float) - self.center, self.half_widths, self.radius)

@@ -20,6 +20,7 @@ class SetUnion:
     """
 
     def __init__(self, pieces):
+        #: the zonotopes whose union is the set
         self.pieces = tuple(pieces)
         if not self.pieces:
             raise SetError("SetUnion needs at least one set")
