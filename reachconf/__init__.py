@@ -70,6 +70,7 @@ _LAZY = {
     "DiagnoseOptions": "reachconf.diagnose.fit",
     "GapReport": "reachconf.diagnose.report",
     "locate_gap": "reachconf.diagnose.locate",
+    "identify": "reachconf.diagnose.identify",
 }
 
 #: old module path -> the module's home since the layout of issue 14 (the old paths keep working)

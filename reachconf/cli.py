@@ -7,6 +7,7 @@ with status 2; Ctrl-C saves the partial results and exits with 130.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import sys
@@ -92,12 +93,7 @@ def cmd_reach(args):
         if out is not None:
             entry["npz"] = str(tube.save(out / f"{case.name}_tube.npz"))
             fig, ax = plt.subplots(figsize=(8, 4))
-            dims = _xy_dims(spec.model)
-            tube.plot(dims=dims, ax=ax, label="reach tube")
-            if all(d in case.signals for d in dims):
-                ax.plot(case.signal(dims[0]), case.signal(dims[1]), "k.", ms=1.5, label="measured")
-            ax.set_xlabel(dims[0])
-            ax.set_ylabel(dims[1])
+            tube.plot(ax=ax, label="reach tube", measured=case)
             ax.legend()
             fig.tight_layout()
             _savefig(fig, out / f"{case.name}_tube.png")
@@ -108,15 +104,6 @@ def cmd_reach(args):
     if args.json:
         _write_json(args.json, results)
     return 0
-
-
-def _xy_dims(model):
-    names = model.state_names
-    if "X" in names and "Y" in names:
-        return ("X", "Y")
-    if "px" in names and "py" in names:
-        return ("px", "py")
-    return (names[0], names[1] if len(names) > 1 else names[0])
 
 
 def cmd_conform(args):
@@ -171,27 +158,11 @@ def cmd_synth(args):
         res.to_json(args.json)
     out = _outdir(args)
     if out is not None:
-        res.to_json(out / "synthesis.json")
-        fig = _plot_synthesis(res.to_dict())
+        res.save(out / "synthesis.json")
+        fig = res.plot()[0].figure
         _savefig(fig, out / "synthesis.png")
         plt.close(fig)
     return 0
-
-
-def _plot_synthesis(d):
-    import matplotlib.pyplot as plt
-
-    names = d["disturbances"]
-    fig, axes = plt.subplots(1, len(names), figsize=(2.2 * len(names), 3), squeeze=False)
-    for j, name in enumerate(names):
-        ax = axes[0, j]
-        for i, (g, box) in enumerate(d["groups"].items()):
-            ax.plot([i, i], box[j], lw=6, solid_capstyle="butt", label=g)
-        ax.set_title(name)
-        ax.set_xticks(range(len(d["groups"])), list(d["groups"]), rotation=45, fontsize=7)
-    fig.suptitle("W_RC per group")
-    fig.tight_layout()
-    return fig
 
 
 def cmd_plot(args):
@@ -201,32 +172,43 @@ def cmd_plot(args):
     if not path.is_file():
         raise DataError(f"{path}: no such result file")
     out = _outdir(args) or path.parent
-    if path.suffix == ".npz":
-        from reachconf.tube import ReachTube
-
-        tube = ReachTube.load(path)
-        fig, ax = plt.subplots(figsize=(8, 4))
-        tube.plot(dims=tuple(args.dims) if args.dims else (0, 1), ax=ax)
-        target = out / (path.stem + ".png")
-    elif path.suffix == ".json":
-        try:
-            d = json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
-            raise DataError(f"{path}: not valid JSON: {exc}") from None
-        if "groups" in d and "disturbances" in d:
-            fig = _plot_synthesis(d)
-        elif "front" in d:
-            from reachconf.conformance.pareto import plot_front_dict
-
-            fig = plot_front_dict(d)
-        else:
-            raise DataError(f"{path}: not a synthesis or Pareto-front result (keys {sorted(d)[:6]})")
-        target = out / (path.stem + ".png")
-    else:
-        raise DataError(f"{path}: unsupported result type {path.suffix!r} (use a tube .npz or a result .json)")
-    _savefig(fig, target)
+    result = _load_result(path)
+    kwargs = {}
+    if args.dims:
+        if "dims" not in inspect.signature(result.plot).parameters:
+            raise DataError(f"{path}: --dims applies to tubes and reachset results, not to a {type(result).__name__}")
+        kwargs["dims"] = tuple(int(d) if d.isdigit() else d for d in args.dims)
+    ax = np.atleast_1d(result.plot(**kwargs))[0]
+    target = out / (path.stem + ".png")
+    _savefig(ax.figure, target)
+    plt.close(ax.figure)
     print(f"wrote {target}")
     return 0
+
+
+def _load_result(path: Path):
+    """A saved result by its file: a tube ``.npz``, or a result ``.json`` (by its ``"result"`` key or its fields)."""
+    from reachconf.conformance.pareto import ParetoFront
+    from reachconf.conformance.reachset import ReachsetResult
+    from reachconf.conformance.synthesis import SynthesisResult
+    from reachconf.conformance.trace import TraceResult
+    from reachconf.diagnose.locate import GapLocation
+    from reachconf.diagnose.report import GapReport
+    from reachconf.io.results import read_json
+    from reachconf.tube import ReachTube
+
+    if path.suffix == ".npz":
+        return ReachTube.load(path)
+    if path.suffix != ".json":
+        raise DataError(f"{path}: unsupported result type {path.suffix!r} (use a tube .npz or a result .json)")
+    d = read_json(path)
+    types = {c.__name__: c for c in (SynthesisResult, ParetoFront, TraceResult, ReachsetResult, GapReport, GapLocation)}
+    kind = d.get("result")
+    if kind is None:  # files written before results carried their type
+        kind = "SynthesisResult" if "groups" in d and "disturbances" in d else "ParetoFront" if "front" in d else None
+    if kind not in types:
+        raise DataError(f"{path}: not a reachconf result that can be plotted (keys {sorted(d)[:6]})")
+    return types[kind].load(path)
 
 
 def cmd_diagnose(args):
@@ -251,9 +233,9 @@ def cmd_diagnose(args):
     if out is not None:
         from reachconf.io.atomic import atomic_write
 
-        report.to_json(out / "report.json")
+        report.save(out / "report.json")
         atomic_write(out / "report.md", report.summary())
-        report.plot(out)
+        report.save_plots(out)
     print(report.verdict)
     return 0
 
@@ -299,7 +281,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("plot", help="plot a result (tube .npz, synthesis or Pareto JSON)")
     sp.add_argument("result")
     sp.add_argument("--out", help="folder for the PNG (default: next to the result)")
-    sp.add_argument("--dims", nargs=2, type=int, help="dimensions of a tube to plot")
+    sp.add_argument("--dims", nargs=2, help="two states of a tube (names or indices) or outputs of a reachset result")
     sp.set_defaults(fn=cmd_plot)
     return p
 

@@ -14,7 +14,6 @@ the measured traces.
 
 from __future__ import annotations
 
-import io
 import json
 import sys
 import time
@@ -32,6 +31,7 @@ from reachconf.io.cases import TestCase, TestSuite
 from reachconf.io.files import save_suite
 from reachconf.model.simulate import simulate
 from reachconf.models import get_model
+from reachconf.plot import save_figure
 from reachconf.runfile import load_run
 from reachconf.sets.core import Interval
 
@@ -123,19 +123,14 @@ def run_demo(out, workers=None, log=print) -> dict:
     for i, case in enumerate(suite):
         W = synth.groups.get(case.group, spec.W)
         res = reachset_conformance(model, case, W, spec.V, options=spec.reach_options)
-        if res.tube is not None:
-            res.tube.plot(dims=("X", "Y"), ax=ax, color="C0", alpha=0.15, outline=False,
-                          label="reach tube (W_RC)" if i == 0 else None)  # fmt: skip
-        ax.plot(case.signal("X"), case.signal("Y"), "k.", ms=1.5, label="measured" if i == 0 else None)
+        res.plot(ax=ax, dims=("X", "Y"), color="C0", alpha=0.15, outline=False,
+                 label="reach tube (W_RC)" if i == 0 else None)  # fmt: skip
     ax.set_xlabel("X [m]")
     ax.set_ylabel("Y [m]")
     ax.set_title("Closed-loop bicycle: X-Y reach tube with the synthesised W and the measured traces")
     ax.legend(loc="upper left")
     fig.tight_layout()
-    png = out / "reach_tube_xy.png"
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=120)
-    atomic_write(png, buf.getvalue())
+    png = save_figure(fig, out / "reach_tube_xy.png", dpi=120, bbox_inches=None)
     plt.close(fig)
     summary["timings"]["tube"] = time.perf_counter() - t0
     summary["timings"]["total"] = time.perf_counter() - t_all

@@ -1,4 +1,4 @@
-"""Drawing reach tubes (matplotlib, imported when drawing) and saving figures atomically."""
+"""Drawing reach tubes with measurements (matplotlib, imported when drawing) and saving figures atomically."""
 
 from __future__ import annotations
 
@@ -7,22 +7,37 @@ from pathlib import Path
 
 import numpy as np
 
-from reachconf.errors import SetError
+from reachconf.errors import DataError, SetError
 from reachconf.io.atomic import atomic_write
 
-__all__ = ["plot_tube", "save_figure"]
+__all__ = ["plot_tube", "plot_measured", "save_figure"]
 
 
-def plot_tube(tube, dims=("X", "Y"), ax=None, color="C0", alpha=0.35, outline=True, label=None):
-    """Draw a :class:`~reachconf.ReachTube` projected on two states.
+def plot_tube(tube, dims=None, ax=None, color="C0", alpha=0.35, outline=True, label=None, measured=None):
+    """Draw a :class:`~reachconf.ReachTube` projected on two states, and measured points on top.
 
     Time-interval sets are filled polygons (one ``PolyCollection``), time-point
-    sets are outlined.  Returns the axes.
+    sets are outlined.
+
+    Parameters
+    ----------
+    tube : ReachTube
+    dims : pair of str or int, optional
+        States to draw (default: the first two).
+    ax : matplotlib Axes, optional
+    color, alpha, outline, label
+        Style of the tube.
+    measured : TestCase, array (K, 2), or a list of these, optional
+        Drawn as black dots by :func:`plot_measured`.
+
+    Returns
+    -------
+    matplotlib Axes
     """
     import matplotlib.pyplot as plt
     from matplotlib.collections import PolyCollection
 
-    idx = tube.dim_indices(dims)
+    idx = tube.dim_indices(tuple(tube.state_names[:2]) if dims is None else dims)
     if len(idx) != 2:
         raise SetError(f"plot needs two dimensions, got {dims!r}")
     if ax is None:
@@ -40,6 +55,46 @@ def plot_tube(tube, dims=("X", "Y"), ax=None, color="C0", alpha=0.35, outline=Tr
     names = [tube.state_names[i] for i in idx]
     ax.set_xlabel(names[0])
     ax.set_ylabel(names[1])
+    if measured is not None:
+        plot_measured(ax, measured, names)
+    return ax
+
+
+def plot_measured(ax, measured, dims, label="measured", **style):
+    """Draw measured points on an X-Y plot: black dots, one legend entry for all.
+
+    Parameters
+    ----------
+    ax : matplotlib Axes
+    measured : TestCase, array (K, 2), or a list of these
+        A test case contributes its signals named ``dims`` (and nothing if it
+        lacks them, e.g. states that are not measured).
+    dims : pair of str
+        Signal names of the two axes.
+    label : str
+        Legend entry (given once per axes).
+    **style
+        Passed to ``ax.plot`` (default ``"k."``, ``ms=1.5``).
+
+    Returns
+    -------
+    matplotlib Axes
+    """
+    items = measured if isinstance(measured, (list, tuple)) else [measured]
+    style = {"marker": ".", "ls": "none", "color": "k", "ms": 1.5, **style}
+    if label in ax.get_legend_handles_labels()[1]:
+        label = None  # one legend entry per label, however many calls draw it
+    for item in items:
+        if hasattr(item, "signals"):
+            if not all(d in item.signals for d in dims):
+                continue
+            xy = np.column_stack([item.signal(dims[0]), item.signal(dims[1])])
+        else:
+            xy = np.asarray(item, dtype=float)
+            if xy.ndim != 2 or xy.shape[1] != 2:
+                raise DataError(f"measured points must have shape (K, 2), got {xy.shape}")
+        ax.plot(xy[:, 0], xy[:, 1], label=label, **style)
+        label = None
     return ax
 
 

@@ -223,9 +223,44 @@ class ReachTube:
         return Containment(inside, times, int(bad[0]) if bad.size else None)
 
     # ------------------------------------------------------------- output
-    def plot(self, dims=("X", "Y"), ax=None, color="C0", alpha=0.35, outline=True, label=None):
-        """Draw the 2-D projection: filled time-interval sets, outlined time-point sets."""
-        return plot_tube(self, dims=dims, ax=ax, color=color, alpha=alpha, outline=outline, label=label)
+    def plot(self, ax=None, dims=None, color="C0", alpha=0.35, outline=True, label=None, measured=None):
+        """Draw the 2-D projection: filled time-interval sets, outlined time-point sets, measured points.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+            New axes if None.
+        dims : pair of str or int, optional
+            States to draw (default: the first two).
+        color, alpha, outline, label
+            Style of the tube.
+        measured : TestCase, array (K, 2), or a list of these, optional
+            Measurements drawn on top (a case by its signals named ``dims``).
+
+        Returns
+        -------
+        matplotlib Axes
+        """
+        if isinstance(ax, (tuple, list)):  # the old order plot(dims, ax)
+            ax, dims = (dims if hasattr(dims, "add_collection") else None), ax
+        return plot_tube(self, dims=dims, ax=ax, color=color, alpha=alpha, outline=outline, label=label,
+                         measured=measured)  # fmt: skip
+
+    def to_dict(self) -> dict:
+        """A JSON-able summary: names, times, the interval hulls of the time-interval sets, metadata.
+
+        The sets themselves are saved by :meth:`save` (``.npz``).
+        """
+        return {"state_names": list(self.state_names), "times": self.times.tolist(),
+                "time_intervals": self.time_intervals.tolist(), "bounds": self.bounds().tolist(),
+                "splits": self.splits, "seconds": self.seconds, "meta": self.meta}  # fmt: skip
+
+    def to_json(self, path=None) -> str:
+        """JSON text of :meth:`to_dict`; written atomically to ``path`` if given."""
+        text = json.dumps({"result": "ReachTube", **self.to_dict()}, indent=2)
+        if path is not None:
+            atomic_write(path, text)
+        return text
 
     def save(self, path) -> Path:
         """Write the tube to ``.npz`` atomically (sets, times, names, metadata)."""

@@ -435,7 +435,7 @@ def reach_loop(
     max_iter, max_error, rel_round, start, stop,
     store_tp_c, store_tp_G, store_ti_c, store_ti_G, store_ng_tp, store_ng_ti, err_trace,
 ):  # fmt: skip
-    """Run steps ``start .. stop-1`` from ``Z(c0, G0)`` until ``stop`` or a failure.
+    """Run the steps from ``start`` to ``stop - 1`` from ``Z(c0, G0)``, until ``stop`` or a failure.
 
     Step ``k`` uses input ``U[k]`` and length ``dts[k]``.  Sets are written to
     the preallocated stores (time-point set at the end of step k and the

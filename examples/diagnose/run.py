@@ -76,7 +76,7 @@ def run_one(job):
     folder.mkdir(parents=True, exist_ok=True)
     report.to_json(folder / "report.json")
     atomic_write(folder / "report.md", report.summary())
-    report.plot(folder)
+    report.save_plots(folder)
     verdict = judge(report, truth)
     best = report.best
     row = {"withheld": name, "truth": truth, **verdict, "verdict": report.verdict,

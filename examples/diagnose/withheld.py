@@ -25,7 +25,8 @@ from reachconf.datasets.vehicle_campaign import (
     reference_path,
     simulate_maneuver,
 )
-from reachconf.diagnose.fit import Candidate, DiagnoseOptions, fit_candidate, noise_level, prepare
+from reachconf.diagnose.fit import DiagnoseOptions
+from reachconf.diagnose.identify import identify
 from reachconf.errors import OptionsError
 from reachconf.io import TestCase, TestSuite
 from reachconf.models import bicycle
@@ -73,25 +74,22 @@ def withheld_suite(name: str, repetitions: int = 3, maneuvers=DIAGNOSIS_MANEUVER
     for i, (kind, a, r) in enumerate(tqdm(jobs, desc=f"suite {name}", disable=not progress, leave=False)):
         ref = excitation_path(a_lat=a) if kind == "EX" else reference_path(kind, a)
         out = simulate_maneuver(ref, effects, seed=seed * 100_003 + 1000 * i + 17)
-        signals = {"ax": out["ax_req"], "delta": out["delta_req"] * effects.delta_s_nominal}
-        signals.update({k: out[k] for k in ("X", "Y", "psi", "vx", "vy", "omega")})
-        cases.append(TestCase.from_signals(f"{kind}_{a:g}_{r + 1}", out["t"], signals, ("ax", "delta"),
-                                           ("X", "Y", "psi", "vx", "vy", "omega"), group=f"{kind}_{a:g}"))  # fmt: skip
+        signals = {k: out[k] for k in ("X", "Y", "psi", "vx", "vy", "omega", "ax", "delta", "ax_req", "delta_req")}
+        case = TestCase.from_signals(f"{kind}_{a:g}_{r + 1}", out["t"], signals, ("ax", "delta"),
+                                     ("X", "Y", "psi", "vx", "vy", "omega"), group=f"{kind}_{a:g}")  # fmt: skip
+        # what the logger gives: the requests (wheel angle) as the inputs, the realised signals left out
+        cases.append(case.with_requests({"delta": (effects.delta_s_nominal, 0.0)}))
     return TestSuite(cases, name=f"withheld {name}"), [dict(tr) for tr in truth]
 
 
 def nominal_bicycle_params(repetitions: int = 2, seed: int = 99) -> dict:
     """Nominal ``J_m, c_f, c_r`` of the bicycle, as from an earlier identification on effect-free runs.
 
-    Least squares (``examples/vehicle/identify.py`` style, multi-step prediction
-    of :mod:`reachconf.diagnose.fit`) on runs of the noisy ideal plant with
-    *other* seeds than any diagnosis suite.
+    Least squares by multi-step prediction (:func:`reachconf.diagnose.identify.identify`)
+    on runs of the noisy ideal plant with *other* seeds than any diagnosis suite.
     """
     suite, _ = withheld_suite("none", repetitions=repetitions, seed=seed)
-    model = bicycle()
-    opts = DiagnoseOptions(prior=10.0, param_bounds=0.9)
-    data = [prepare(model, c, opts) for c in suite]
-    sigma = noise_level(np.vstack([d.Y for d in data]))
     # the geometry (L, b/L) is known from the data sheet; the yaw inertia and tyre stiffnesses are identified
-    fit = fit_candidate(model, Candidate(()), data, sigma, ("J_m", "c_f", "c_r"), opts, {})
-    return {k: float(v) for k, v in fit.base_params.items()}
+    res = identify(bicycle(), suite, ("J_m", "c_f", "c_r"), method="prediction",
+                   options=DiagnoseOptions(prior=10.0, param_bounds=0.9))  # fmt: skip
+    return res.params

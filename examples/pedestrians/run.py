@@ -34,6 +34,7 @@ import numpy as np
 from reachconf.datasets.biwi import prediction_cases, read_sequence
 from reachconf.errors import ReachconfError
 from reachconf.io import atomic_write
+from reachconf.plot import save_figure
 from reachconf.sets import Zonotope, box_disk_distance, disk_zonotope
 
 A_MAX, V_MAX, HORIZON, P_UNC, V_UNC = 0.6, 2.0, 1.6, 0.1, 0.1
@@ -115,7 +116,7 @@ def plot_curve(cases, out: Path):
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "pass_rate_curve.png", dpi=120)
+    save_figure(fig, out / "pass_rate_curve.png", dpi=120, bbox_inches=None)
     plt.close(fig)
     curve = {"v_max": V_MAX, "a_max": grid.tolist(), "rate_percent": rate, "quantiles": quant}
     atomic_write(out / "pass_rate_curve.json", json.dumps(curve, indent=2))

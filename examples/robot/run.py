@@ -53,6 +53,7 @@ import numpy as np
 from reachconf.datasets.biwi import ANNOTATION_DT, read_sequence
 from reachconf.errors import ReachconfError
 from reachconf.io import atomic_write
+from reachconf.plot import save_figure
 from reachconf.sets import BoxDisk
 
 
@@ -259,10 +260,7 @@ def plot_run(scene, res, zones, out):
     ax.plot(xy[:, 0], xy[:, 1], "C0-", lw=1.5, label="robot path")
     tube = L.braking_reach_tube((x, y, th), v, w)
     t_stop = tube.times[-1]
-    for S in tube.project((0, 1)).time_interval_sets:
-        for Z in getattr(S, "pieces", (S,)):
-            V = Z.polygon()
-            ax.fill(V[:, 0], V[:, 1], color="C0", alpha=0.25, lw=0)
+    tube.plot(ax=ax, dims=("px", "py"), color="C0", alpha=0.25, outline=False)
     end = tube.project((0, 1)).time_point_sets[-1].interval()
     ax.add_patch(plt.Circle(0.5 * (end.lo + end.hi), R_ROBOT + np.hypot(*(end.hi - end.lo)) / 2, fill=False,
                             color="C0", lw=1, ls="--", label=f"fail-safe reach set at standstill (+{R_ROBOT} m footprint)"))
@@ -288,7 +286,7 @@ def plot_run(scene, res, zones, out):
                  fontsize=9)  # fmt: skip
     ax.legend(loc="lower left", fontsize=6.5, framealpha=0.9)
     fig.tight_layout()
-    fig.savefig(out / "robot_run.png", dpi=90)
+    save_figure(fig, out / "robot_run.png", dpi=90, bbox_inches=None)
     plt.close(fig)
 
 

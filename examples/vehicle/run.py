@@ -41,6 +41,7 @@ from reachconf.datasets.vehicle_campaign import NO_EFFECTS, PlantEffects, make_c
 from reachconf.conformance import SynthesisOptions, synthesize_W  # noqa: E402
 from reachconf.io import atomic_write, load_suite  # noqa: E402
 from reachconf.models import bicycle, bicycle_actuated, bicycle_closed_loop_actuated  # noqa: E402
+from reachconf.plot import plot_measured, save_figure  # noqa: E402
 from reachconf.runner import process_pool  # noqa: E402
 
 DEG = np.pi / 180
@@ -123,33 +124,18 @@ def plot_tubes(model, suite, synth, V, out, opts):
             members, note = ok + [c for c in members if c not in ok], f"hull of W_RC of the {len(ok)} conformant runs"
         fig, ax = plt.subplots(figsize=(10, 3.2))
         res = reachset_conformance(model, members[0], W, V, options=opts)
-        if res.tube is not None:
-            res.tube.plot(dims=("X", "Y"), ax=ax, color="C0", alpha=0.2, outline=False, label=f"reach tube, {note}")
-        for i, c in enumerate(members):
-            ax.plot(c.signal("X"), c.signal("Y"), ".", ms=1, color="k", label="measured" if i == 0 else None)
+        res.plot(ax=ax, dims=("X", "Y"), color="C0", alpha=0.2, outline=False, label=f"reach tube, {note}")
+        plot_measured(ax, members[1:], ("X", "Y"), ms=1)
         ax.plot(members[0].signal("X_ref"), members[0].signal("Y_ref"), "--", lw=0.8, color="C3", label="reference")
         ax.set_title(f"{g}: X-Y reach tube of the closed-loop model (run {members[0].name}) and all measured runs")
         ax.set_xlabel("X [m]")
         ax.set_ylabel("Y [m]")
         ax.legend(loc="upper left", fontsize=7)
         fig.tight_layout()
-        path = out / f"tube_{g}.png"
-        fig.savefig(path, dpi=110)
+        path = save_figure(fig, out / f"tube_{g}.png", dpi=110, bbox_inches=None)
         plt.close(fig)
         files.append(str(path))
     return files
-
-
-def requested_inputs(suite, delta_s_nominal):
-    """The suite with f_B driven by the requests (ideal actuators): ``ax = ax_req``, ``delta = delta_s delta_req``."""
-    from reachconf.io import TestCase
-
-    def swap(c):
-        sig = dict(c.signals)
-        sig["ax"], sig["delta"] = sig["ax_req"], sig["delta_req"] * delta_s_nominal
-        return TestCase.from_signals(c.name, c.t, sig, ("ax", "delta"), ("X", "Y", "psi", "vx", "vy", "omega"), c.group)
-
-    return suite.map(swap)
 
 
 def markdown(result) -> str:
@@ -278,7 +264,8 @@ def _run(args, out, suite, plain, pool, timings, result):
     if args.quick or args.compare_requested:
         t0 = time.perf_counter()
 
-        req = requested_inputs(suite, PlantEffects().delta_s_nominal)
+        # f_B driven by the requests (ideal actuators): ax = ax_req, delta = delta_s delta_req
+        req = suite.map(lambda c: c.with_requests({"delta": (PlantEffects().delta_s_nominal, 0.0)}))
         result["table4_fB_requested"] = trace_table(fB, req, box(V_TABLE3), (("ax", "delta"), fB.output_names), pool)
         timings["table4_fB_requested"] = time.perf_counter() - t0
     print(f"2. Table 3 ({timings['table3']:.1f} s), Table 4 ({timings['table4']:.1f} s)", flush=True)

@@ -56,6 +56,7 @@ from reachconf.datasets.openfast import read_output
 from reachconf.io import TestCase, atomic_write
 from reachconf.model import evaluate_outputs, simulate, state_estimate
 from reachconf.models.windturbine import CP_DEFAULT, CT_DEFAULT, wind_turbine
+from reachconf.plot import save_figure
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 #: name -> (file, start of the evaluated window [s], label)
@@ -232,7 +233,7 @@ def plot_figure9(results, out):
         h.set_alpha(1)
     fig.suptitle("Per-step disturbances (trace conformance, eqs. 70/71) and the reference derivative boxes of eq. 72")
     fig.tight_layout()
-    fig.savefig(out / "figure9_disturbances.png", dpi=110)
+    save_figure(fig, out / "figure9_disturbances.png", dpi=110, bbox_inches=None)
     plt.close(fig)
 
 
@@ -254,7 +255,7 @@ def plot_figure10(case, label, Y_fit, Y_def, out):
     axes[-1].set_xlabel("t [s]")
     fig.suptitle(f"{label}: undisturbed open-loop model against the reference (Figure 10)")
     fig.tight_layout()
-    fig.savefig(out / f"{case.name}_undisturbed.png", dpi=110)
+    save_figure(fig, out / f"{case.name}_undisturbed.png", dpi=110, bbox_inches=None)
     plt.close(fig)
 
 

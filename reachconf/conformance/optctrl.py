@@ -1,7 +1,7 @@
 """Optimal-control disturbance traces (Alg. 2, eqs. 29–41) and box minimisation by SCP.
 
 Both solve, around a consistent trace (simulated states ``X`` for the
-disturbances ``W``), the convex problem on the linearised dynamics
+disturbances ``W``), the convex problem on the linearised dynamics::
 
     dx[j+1] = Ad[j] dx[j] + Bd[j] dw[j] + d[j]            (eqs. 30–32)
     lo_W <= w[j] + dw[j] <= hi_W                           (eqs. 37/38)

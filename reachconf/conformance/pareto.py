@@ -9,7 +9,6 @@ another in every channel: a sampled Pareto front.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,7 +16,7 @@ import numpy as np
 from reachconf.conformance.synthesis import SynthesisOptions, reachset_check
 from reachconf.conformance.trace import trace_conformance
 from reachconf.errors import ConformanceError, OptionsError
-from reachconf.io.atomic import atomic_write
+from reachconf.io.results import JsonResult
 from reachconf.runner import run_cases
 from reachconf.sets.convert import as_box
 from reachconf.sets.core import Interval
@@ -26,7 +25,7 @@ __all__ = ["ParetoFront", "pareto_front", "plot_front_dict"]
 
 
 @dataclass
-class ParetoFront:
+class ParetoFront(JsonResult):
     """Non-dominated conformant boxes.
 
     Attributes
@@ -54,39 +53,39 @@ class ParetoFront:
         return np.array([b.hi - b.lo for b in self.boxes])
 
     def to_dict(self):
+        """Channel names, the start box and the front (each box with its channel order)."""
         return {"disturbances": list(self.disturbance_names), "check": self.check, "start": self.start.to_list(),
                 "front": [{"box": b.to_list(), "order": list(o)} for b, o in zip(self.boxes, self.orders)]}  # fmt: skip
 
-    def to_json(self, path=None) -> str:
-        text = json.dumps(self.to_dict(), indent=2, default=float)
-        if path is not None:
-            atomic_write(path, text)
-        return text
+    @classmethod
+    def from_dict(cls, d: dict) -> "ParetoFront":
+        """The front from :meth:`to_dict`."""
+        box = (lambda pairs: Interval(*np.asarray(pairs, dtype=float).reshape(-1, 2).T))  # noqa: E731
+        return cls([box(e["box"]) for e in d["front"]], [tuple(e["order"]) for e in d["front"]], box(d["start"]),
+                   tuple(d["disturbances"]), d["check"])  # fmt: skip
 
     def plot(self, ax=None):
-        return plot_front_dict(self.to_dict(), ax=ax)
+        """Parallel coordinates: the channel widths of each box, normalised by the start box; returns the axes."""
+        import matplotlib.pyplot as plt
+
+        names = list(self.disturbance_names)
+        start = np.array(self.start.to_list())
+        ref = np.where(start[:, 1] > start[:, 0], start[:, 1] - start[:, 0], 1.0)
+        if ax is None:
+            _, ax = plt.subplots(figsize=(1.2 * len(names) + 3, 3.5))
+        for box, order in zip(self.boxes, self.orders):
+            ax.plot(range(len(names)), (box.hi - box.lo) / ref, "o-", label=f"order {list(order)}")
+        ax.set_xticks(range(len(names)), names)
+        ax.set_ylabel("width / start width")
+        ax.set_title(f"Pareto front of {self.check}-conformant boxes")
+        ax.legend(fontsize=6)
+        ax.figure.tight_layout()
+        return ax
 
 
 def plot_front_dict(d, ax=None):
-    """Parallel-coordinates plot of the channel widths of each box, normalised by the start box."""
-    import matplotlib.pyplot as plt
-
-    names = d["disturbances"]
-    start = np.array(d["start"])
-    ref = np.where(start[:, 1] > start[:, 0], start[:, 1] - start[:, 0], 1.0)
-    if ax is None:
-        fig, ax = plt.subplots(figsize=(1.2 * len(names) + 3, 3.5))
-    else:
-        fig = ax.figure
-    for k, entry in enumerate(d["front"]):
-        box = np.array(entry["box"])
-        ax.plot(range(len(names)), (box[:, 1] - box[:, 0]) / ref, "o-", label=f"order {entry['order']}")
-    ax.set_xticks(range(len(names)), names)
-    ax.set_ylabel("width / start width")
-    ax.set_title(f"Pareto front of {d['check']}-conformant boxes")
-    ax.legend(fontsize=6)
-    fig.tight_layout()
-    return fig
+    """Plot a front given as :meth:`ParetoFront.to_dict`'s dict (see :meth:`ParetoFront.plot`); returns the figure."""
+    return ParetoFront.from_dict(d).plot(ax).figure
 
 
 def _reachset_job(job):

@@ -10,6 +10,8 @@ from scipy.optimize import linprog
 
 from reachconf.errors import ConformanceError, ReachError
 from reachconf.io.cases import case_arrays
+from reachconf.io.results import JsonResult
+from reachconf.plot import plot_measured
 from reachconf.model.outputs import affine_output, output_enclosure, output_index_of_states, state_estimate
 from reachconf.reach import ReachStopped, reach_run
 from reachconf.reach_options import ReachOptions
@@ -24,7 +26,7 @@ __all__ = ["ReachsetResult", "reachset_conformance", "initial_set"]
 
 
 @dataclass
-class ReachsetResult:
+class ReachsetResult(JsonResult):
     """Outcome of the reachset-conformance check of one test case (eq. 42/43).
 
     Attributes
@@ -42,9 +44,17 @@ class ReachsetResult:
         Measurement inside its set (False also for samples not checked after
         a stop at the first violation).
     tube : ReachTube or None
+        Not saved by :meth:`save` (save it with ``tube.save``).
     seconds : float
     message : str
         Why the reach failed (the :class:`ReachError` text), else empty.
+    violations : dict
+        Time -> distance of each violating measurement (with ``violation_distance``).
+    t : ndarray (K,) or None
+        Sample times of the case.
+    Y : ndarray (K, p) or None
+        The measurements.
+    output_names : tuple of str
     """
 
     case: str
@@ -56,6 +66,65 @@ class ReachsetResult:
     seconds: float = 0.0
     message: str = ""
     violations: dict = field(default_factory=dict)
+    t: np.ndarray | None = None
+    Y: np.ndarray | None = None
+    output_names: tuple = ()
+
+    def to_dict(self) -> dict:
+        """Verdict, violations and measurements (the tube is not included)."""
+        return {"case": self.case, "conformant": bool(self.conformant),
+                "first_violation_time": self.first_violation_time, "max_violation": float(self.max_violation),
+                "inside": np.asarray(self.inside, bool).tolist(), "seconds": float(self.seconds),
+                "message": self.message, "violations": {repr(k): float(v) for k, v in self.violations.items()},
+                "t": None if self.t is None else np.asarray(self.t).tolist(),
+                "Y": None if self.Y is None else np.asarray(self.Y).tolist(),
+                "output_names": list(self.output_names)}  # fmt: skip
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ReachsetResult":
+        """The result from :meth:`to_dict` (without a tube)."""
+        arr = (lambda v: None if v is None else np.asarray(v, dtype=float))  # noqa: E731
+        return cls(d["case"], bool(d["conformant"]), d["first_violation_time"], float(d["max_violation"]),
+                   np.asarray(d["inside"], dtype=bool), None, float(d["seconds"]), d["message"],
+                   {float(k): float(v) for k, v in d["violations"].items()}, arr(d.get("t")), arr(d.get("Y")),
+                   tuple(d.get("output_names", ())))  # fmt: skip
+
+    def plot(self, ax=None, dims=None, **style):
+        """The reach tube (if kept) with the measurements; measurements outside their sets in red.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+        dims : pair of str, optional
+            States drawn (default: the tube's first two); the measurements
+            drawn are the outputs of the same names.
+        **style
+            Passed to :meth:`ReachTube.plot` (``color``, ``alpha``, ``outline``, ``label``).
+
+        Returns
+        -------
+        matplotlib Axes
+        """
+        import matplotlib.pyplot as plt
+
+        if self.tube is not None:
+            dims = tuple(self.tube.state_names[:2]) if dims is None else tuple(dims)
+            ax = self.tube.plot(ax=ax, dims=dims, **style)
+        elif ax is None:
+            _, ax = plt.subplots(figsize=(8, 5))
+        names = list(self.output_names)
+        if dims is None:
+            dims = tuple(names[:2])
+        if self.Y is not None and all(d in names for d in dims):
+            xy = np.asarray(self.Y)[:, [names.index(d) for d in dims]]
+            inside = np.asarray(self.inside, bool)
+            plot_measured(ax, [xy[inside]], dims)
+            if (~inside).any():
+                plot_measured(ax, [xy[~inside]], dims, label="outside its set", color="C3", ms=4)
+            ax.set_xlabel(dims[0])
+            ax.set_ylabel(dims[1])
+        ax.set_title(f"{self.case}: {'conformant' if self.conformant else 'not conformant'}", fontsize=9)
+        return ax
 
 
 def initial_set(model, case, V) -> Interval | Zonotope:
@@ -156,12 +225,12 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
                          monitor=checker)  # fmt: skip
     except ReachError as exc:
         return ReachsetResult(name, False, float(t[0] + (exc.time or 0.0)), float("inf"), np.zeros(t.size, bool),
-                              None, time.perf_counter() - t0, str(exc))  # fmt: skip
+                              None, time.perf_counter() - t0, str(exc), {}, t, Y, model.output_names)  # fmt: skip
     except ReachStopped:
         inside = checker.status == 1
         first = int(np.nonzero(checker.status == 0)[0][0])
         return ReachsetResult(name, False, float(t[first]), float("nan"), inside, None,
-                              time.perf_counter() - t0, "", {})  # fmt: skip
+                              time.perf_counter() - t0, "", {}, t, Y, model.output_names)  # fmt: skip
     tube = None
     if keep_tube or checker is None or not run.monitored or violation_distance:
         tube = ReachTube.from_run(run, model)
@@ -180,7 +249,7 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
             worst = max(worst, dist)
     first = float(t[bad[0]]) if bad.size else None
     return ReachsetResult(name, not bad.size, first, worst, inside, tube if keep_tube else None,
-                          time.perf_counter() - t0, "", violations)  # fmt: skip
+                          time.perf_counter() - t0, "", violations, t, Y, model.output_names)  # fmt: skip
 
 
 class _SequenceChecker:

@@ -15,7 +15,6 @@ over all of its cases, giving ``W_RC,Mnvr`` (Table 6).
 
 from __future__ import annotations
 
-import json
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -26,7 +25,7 @@ from reachconf.conformance.bounds import minimize_box
 from reachconf.conformance.reachset import reachset_conformance
 from reachconf.conformance.trace import TraceOptions, trace_disturbances
 from reachconf.errors import OptionsError
-from reachconf.io.atomic import atomic_write
+from reachconf.io.results import JsonResult
 from reachconf.reach_options import ReachOptions
 from reachconf.runner import process_pool, run_cases
 from reachconf.sets.convert import as_box
@@ -101,7 +100,24 @@ class SynthesisOptions:
 
 @dataclass
 class CaseSynthesis:
-    """Per-case result: the three boxes, α, timings and verdicts."""
+    """Per-case result: the three boxes, α, timings and verdicts.
+
+    Attributes
+    ----------
+    name, group : str
+    W_TC, W_opt, W_RC : Interval
+        Steps 1, 2 and 3 (eqs. 62–66, the SCP box, the α-search of eq. 68).
+    alpha : float
+    conformant : bool
+        ``W_RC`` is reachset conformant (verified).
+    seconds : float
+    step_seconds : dict
+        ``step1``, ``step2``, ``step3`` -> seconds.
+    trace_conformant : bool
+        ``W_opt`` is trace conformant.
+    message : str
+    alpha_trials : list of (alpha, conformant)
+    """
 
     name: str
     group: str
@@ -123,9 +139,18 @@ class CaseSynthesis:
                 "step_seconds": self.step_seconds, "message": self.message,
                 "alpha_trials": self.alpha_trials}  # fmt: skip
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "CaseSynthesis":
+        """The case result from :meth:`to_dict`."""
+        box = (lambda pairs: Interval(*np.asarray(pairs, dtype=float).reshape(-1, 2).T))  # noqa: E731
+        return cls(d["name"], d["group"], box(d["W_TC"]), box(d["W_opt"]), box(d["W_RC"]), float(d["alpha"]),
+                   bool(d["conformant"]), float(d["seconds"]), dict(d.get("step_seconds", {})),
+                   bool(d.get("trace_conformant", False)), d.get("message", ""),
+                   [tuple(x) if isinstance(x, list) else x for x in d.get("alpha_trials", [])])  # fmt: skip
+
 
 @dataclass
-class SynthesisResult:
+class SynthesisResult(JsonResult):
     """Outcome of :func:`synthesize_W`.
 
     Attributes
@@ -138,6 +163,7 @@ class SynthesisResult:
     V : Interval
     disturbance_names : tuple of str
     seconds : float
+    group_seconds : dict group -> float
     """
 
     cases: dict
@@ -161,12 +187,37 @@ class SynthesisResult:
             "seconds": self.seconds,
         }
 
-    def to_json(self, path=None, indent=2) -> str:
-        """JSON text of the result; written atomically to ``path`` if given."""
-        text = json.dumps(self.to_dict(), indent=indent, default=float)
-        if path is not None:
-            atomic_write(path, text)
-        return text
+    @classmethod
+    def from_dict(cls, d: dict) -> "SynthesisResult":
+        """The result from :meth:`to_dict`."""
+        box = (lambda pairs: Interval(*np.asarray(pairs, dtype=float).reshape(-1, 2).T))  # noqa: E731
+        return cls({k: CaseSynthesis.from_dict(c) for k, c in d["cases"].items()},
+                   {g: box(W) for g, W in d["groups"].items()}, dict(d["group_alpha"]), dict(d["group_conformant"]),
+                   box(d["V"]), tuple(d["disturbances"]), float(d["seconds"]), dict(d.get("group_seconds", {})))  # fmt: skip
+
+    def plot(self, ax=None):
+        """``W_RC,Mnvr`` per group: one axes per disturbance channel, a bar per group; returns the axes.
+
+        Parameters
+        ----------
+        ax : sequence of matplotlib Axes, optional
+            One per disturbance; a new figure if None.
+        """
+        import matplotlib.pyplot as plt
+
+        names = list(self.disturbance_names)
+        if ax is None:
+            fig, ax = plt.subplots(1, len(names), figsize=(2.2 * len(names), 3), squeeze=False)
+            ax = ax[0]
+            fig.suptitle("W_RC per group")
+        axes = np.atleast_1d(ax)
+        for j, name in enumerate(names):
+            for i, (g, box) in enumerate(self.groups.items()):
+                axes[j].plot([i, i], [box.lo[j], box.hi[j]], lw=6, solid_capstyle="butt", label=g)
+            axes[j].set_title(name)
+            axes[j].set_xticks(range(len(self.groups)), list(self.groups), rotation=45, fontsize=7)
+        axes[0].figure.tight_layout()
+        return axes
 
     def table(self, digits: int = 4) -> str:
         """Table 6 style: one row per group, one ``[lo, hi]`` column per disturbance."""

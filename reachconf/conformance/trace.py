@@ -15,7 +15,6 @@ from the measurement-error margins.
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field, replace
 
@@ -24,6 +23,7 @@ import numpy as np
 from reachconf.conformance.optctrl import optctrl_trace
 from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.cases import case_arrays
+from reachconf.io.results import JsonResult
 from reachconf.model.outputs import affine_output, evaluate_outputs, output_index_of_states, state_estimate
 from reachconf.model.simulate import simulate
 from reachconf.sets.convert import as_box
@@ -96,7 +96,7 @@ class TraceOptions:
 
 
 @dataclass
-class TraceResult:
+class TraceResult(JsonResult):
     """Outcome of Alg. 1 for one test case.
 
     Attributes
@@ -121,6 +121,8 @@ class TraceResult:
     message : str
     integration_error : ndarray (p,)
         Estimated integration error of the simulated outputs.
+    disturbance_names, output_names : tuple of str
+        The model's channel names (labels of :meth:`plot`).
     """
 
     case: str
@@ -135,6 +137,8 @@ class TraceResult:
     seconds: float = 0.0
     message: str = ""
     integration_error: np.ndarray | None = None
+    disturbance_names: tuple = ()
+    output_names: tuple = ()
 
     def disturbance_box(self) -> Interval:
         """Interval hull of the disturbance trace (eqs. 62–66)."""
@@ -145,6 +149,7 @@ class TraceResult:
         return Interval(self.V_trace.min(axis=0), self.V_trace.max(axis=0))
 
     def to_dict(self) -> dict:
+        """The verdict, margins and boxes, and the traces themselves (``t``, ``X``, ``W_trace``, ``V_trace``)."""
         return {
             "case": self.case,
             "conformant": bool(self.conformant),
@@ -155,22 +160,49 @@ class TraceResult:
             "margins": {k: float(v) for k, v in self.margins.items()},
             "W_box": [[float(a), float(b)] for a, b in zip(*_box_lists(self.W_trace))],
             "V_box": [[float(a), float(b)] for a, b in zip(*_box_lists(self.V_trace))],
+            "disturbance_names": list(self.disturbance_names),
+            "output_names": list(self.output_names),
+            "t": self.t.tolist(),
+            "X": self.X.tolist(),
+            "W_trace": self.W_trace.tolist(),
+            "V_trace": self.V_trace.tolist(),
+            "integration_error": None if self.integration_error is None else self.integration_error.tolist(),
         }
 
-    def to_json(self) -> str:
-        return json.dumps(self.to_dict(), indent=2)
+    @classmethod
+    def from_dict(cls, d: dict) -> "TraceResult":
+        """The result from :meth:`to_dict`."""
+        t = np.asarray(d["t"], dtype=float)
+        X = np.asarray(d["X"], dtype=float).reshape(t.size, -1)
+        q, p = len(d["disturbance_names"]), len(d["output_names"])
+        ie = d.get("integration_error")
+        return cls(d["case"], t, bool(d["conformant"]), np.asarray(d["x0"], dtype=float), X,
+                   np.asarray(d["W_trace"], dtype=float).reshape(-1, q), np.asarray(d["V_trace"], dtype=float).reshape(-1, p),
+                   dict(d["margins"]), d["method"], float(d["seconds"]), d["message"],
+                   None if ie is None else np.asarray(ie, dtype=float), tuple(d["disturbance_names"]),
+                   tuple(d["output_names"]))  # fmt: skip
 
-    def plot(self, model=None, axes=None):
-        """Disturbance and measurement-error traces over time."""
+    def plot(self, ax=None, model=None):
+        """Disturbance and measurement-error traces over time (two axes); returns them.
+
+        Parameters
+        ----------
+        ax : pair of matplotlib Axes, optional
+            New figure if None.
+        model : Model, optional
+            Labels (default: the names stored in the result, else ``w1..``, ``v1..``).
+        """
         import matplotlib.pyplot as plt
 
         q, p = self.W_trace.shape[1], self.V_trace.shape[1]
+        axes = ax
         if axes is None:
             _, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
         tw = self.t[:-1] if self.W_trace.shape[0] == self.t.size - 1 else np.linspace(
             self.t[0], self.t[-1], self.W_trace.shape[0], endpoint=False)  # fmt: skip
-        names_w = model.disturbance_names if model is not None else [f"w{i + 1}" for i in range(q)]
-        names_v = model.output_names if model is not None else [f"v{i + 1}" for i in range(p)]
+        names_w = model.disturbance_names if model is not None else (self.disturbance_names or
+                                                                       [f"w{i + 1}" for i in range(q)])  # fmt: skip
+        names_v = model.output_names if model is not None else (self.output_names or [f"v{i + 1}" for i in range(p)])
         for i in range(q):
             axes[0].step(tw, self.W_trace[:, i], where="post", label=names_w[i], lw=0.8)
         for i in range(p):
@@ -178,8 +210,8 @@ class TraceResult:
         axes[0].set_ylabel("disturbance w")
         axes[1].set_ylabel("measurement error v")
         axes[1].set_xlabel("t [s]")
-        for ax in axes:
-            ax.legend(fontsize=7, ncol=3)
+        for a in axes:
+            a.legend(fontsize=7, ncol=3)
         axes[0].set_title(f"{self.case}: {'conformant' if self.conformant else 'not conformant'} ({self.method})")
         return axes
 
@@ -269,7 +301,7 @@ def simulate_verdict(model, case_name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, 
     if not finite:
         message = (message + "; " if message else "") + "the simulated trace diverged (NaN/inf)"
     return TraceResult(case_name, t, bool(ok), x0, X, Wt, Vt, margins, method, time.perf_counter() - t0,
-                       message, yerr.max(axis=0))  # fmt: skip
+                       message, yerr.max(axis=0), model.disturbance_names, model.output_names)  # fmt: skip
 
 
 # ---------------------------------------------------------------------------

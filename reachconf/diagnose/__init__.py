@@ -8,15 +8,18 @@
   (:data:`EFFECTS`, :class:`Effect`, :func:`register_effect`);
 * :mod:`reachconf.diagnose.fit` — joint least-squares fits by multi-step
   prediction, :class:`DiagnoseOptions`;
+* :mod:`reachconf.diagnose.identify` — :func:`identify`, least-squares
+  identification of model parameters (multi-step prediction or equation error);
 * :mod:`reachconf.diagnose.sparse` — the model-free sparse-regression check;
 * :mod:`reachconf.diagnose.report` — :class:`GapReport`, the result.
 """
 
 from reachconf.diagnose.effects import EFFECTS, Effect, register_effect
 from reachconf.diagnose.fit import DiagnoseOptions
+from reachconf.diagnose.identify import Identification, identify
 from reachconf.diagnose.locate import GapLocation, locate_gap
 from reachconf.diagnose.pipeline import diagnose
 from reachconf.diagnose.report import GapReport
 
 __all__ = ["diagnose", "DiagnoseOptions", "GapReport", "GapLocation", "locate_gap", "EFFECTS", "Effect",
-           "register_effect"]  # fmt: skip
+           "register_effect", "identify", "Identification"]  # fmt: skip

@@ -20,14 +20,13 @@ modelled, is :func:`reachconf.diagnose` (this location is its ``where`` part).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from reachconf.conformance.trace import TraceOptions, trace_disturbances
 from reachconf.errors import ConformanceError
-from reachconf.io.atomic import atomic_write
+from reachconf.io.results import JsonResult
 from reachconf.io.cases import case_arrays
 from reachconf.model.outputs import evaluate_outputs
 from reachconf_kernels.integrate import rk4_one_step_each
@@ -36,8 +35,27 @@ __all__ = ["GapLocation", "locate_gap"]
 
 
 @dataclass
-class GapLocation:
-    """Where the gap lies (see module docstring)."""
+class GapLocation(JsonResult):
+    """Where the gap lies (see the module docstring).
+
+    Attributes
+    ----------
+    channels : list of str
+        Disturbance names.
+    shares : dict channel -> float
+        Share of the normalised disturbance box.
+    box : dict channel -> [lo, hi]
+        Hull of the per-step disturbance traces.
+    segments : dict case -> list of dict
+        Excursions outside the quiet envelope (``channel``, ``t0``, ``t1``).
+    group_segments : dict group -> list of dict
+        Excursions shared by most cases of a group (with their ``share``).
+    conditions : dict channel -> dict signal -> float
+        Spearman rank correlation of ``|w|`` with every measured signal.
+    envelope : dict channel -> [lo, hi]
+    drivers : dict channel -> dict output -> float
+        Which outputs' errors drive each channel.
+    """
 
     channels: list
     shares: dict
@@ -49,17 +67,31 @@ class GapLocation:
     drivers: dict = field(default_factory=dict)
 
     def to_dict(self):
+        """All fields as JSON values."""
         return {"channels": self.channels, "shares": self.shares, "box": self.box, "envelope": self.envelope,
                 "segments": self.segments, "group_segments": self.group_segments,
                 "conditions": self.conditions, "drivers": self.drivers}  # fmt: skip
 
-    def to_json(self, path=None) -> str:
-        text = json.dumps(self.to_dict(), indent=2, default=float)
-        if path is not None:
-            atomic_write(path, text)
-        return text
+    @classmethod
+    def from_dict(cls, d: dict) -> "GapLocation":
+        """The location from :meth:`to_dict`."""
+        return cls(list(d["channels"]), dict(d["shares"]), dict(d["box"]), dict(d["segments"]),
+                   dict(d["group_segments"]), dict(d["conditions"]), dict(d.get("envelope", {})),
+                   dict(d.get("drivers", {})))  # fmt: skip
+
+    def plot(self, ax=None):
+        """Channel shares of the normalised disturbance box as bars; returns the axes."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(1.0 * len(self.channels) + 3, 3))
+        ax.bar(self.channels, [self.shares[c] for c in self.channels], color="tab:blue")
+        ax.set_ylabel("share of the normalised box")
+        ax.set_title("where the gap lies: disturbance channels", fontsize=9)
+        return ax
 
     def summary(self, top: int = 3) -> str:
+        """Plain-text summary: channel shares and drivers, shared time segments, operating conditions."""
         lines = ["Share of the normalised disturbance box per channel:"]
         for ch, sh in sorted(self.shares.items(), key=lambda kv: -kv[1]):
             drv = ", ".join(f"{o} (rho {v:.2f})" for o, v in list(self.drivers.get(ch, {}).items())[:2] if v > 0.3)

@@ -201,12 +201,7 @@ def _actuator_vs_process(model, fit, cases, V, k, min_shrink, segment):
         coef = np.polyfit(A, B, 1)
         maps[u] = [float(coef[0]), float(coef[1])]
     for d in cases:
-        U = d.U.copy()
-        for u in have:
-            j = model.input_names.index(u)
-            U[:, j] = np.polyval(maps[u], d.case.signal(req[u]))
-        # copies: TestCase freezes the arrays it is given, and d's arrays feed the compiled kernels later
-        c = TestCase(d.name, d.group, d.t.copy(), U, d.Y.copy(), model.input_names, model.output_names)
+        c = d.case.with_requests(maps, inputs=have)
         requested += _pieces(c.decimate(k) if k > 1 else c, segment)
     bm = _box(fit.model, measured, V, None)
     br = _box(fit.model, requested, V, None)

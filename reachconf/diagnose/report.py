@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from reachconf.io.atomic import atomic_write
+from reachconf.errors import OptionsError
+from reachconf.io.results import JsonResult
+from reachconf.plot import plot_measured, save_figure
 
 __all__ = ["GapReport"]
 
@@ -30,7 +31,7 @@ def _plain(x):
 
 
 @dataclass
-class GapReport:
+class GapReport(JsonResult):
     """Sim-to-real gap diagnosis of a model on a suite.
 
     Attributes
@@ -71,19 +72,14 @@ class GapReport:
 
     @property
     def best(self) -> dict | None:
+        """The best-ranked effect (``ranked_effects[0]``), or None."""
         return self.ranked_effects[0] if self.ranked_effects else None
 
     def to_dict(self) -> dict:
+        """The report as plain JSON values (NaN and inf as None); the reach tubes are left out."""
         return _plain({"where": self.where, "ranked_effects": self.ranked_effects, "verdict": self.verdict,
                        "base": self.base, "combination": self.combination, "features": self.features,
                        "before_after": self.before_after, "split": self.split, "seconds": self.seconds})  # fmt: skip
-
-    def to_json(self, path=None) -> str:
-        """JSON text (``{"where", "ranked_effects", "verdict", ...}``); written atomically to ``path`` if given."""
-        text = json.dumps(self.to_dict(), indent=2)
-        if path is not None:
-            atomic_write(path, text)
-        return text
 
     def summary(self, top: int = 5) -> str:
         """Markdown summary."""
@@ -135,67 +131,89 @@ class GapReport:
                   f"{len(self.split.get('test', []))}; {self.seconds:.1f} s."]  # fmt: skip
         return "\n".join(lines) + "\n"
 
-    def plot(self, out) -> list:
-        """PNGs into folder ``out``: effect ranking and per-channel boxes before/after. Returns the paths."""
-        import matplotlib
+    @classmethod
+    def from_dict(cls, d: dict) -> "GapReport":
+        """The report from :meth:`to_dict` (without the reach tubes, which are not saved)."""
+        return cls(d["where"], list(d["ranked_effects"]), d["verdict"], dict(d.get("base", {})), d.get("combination"),
+                   list(d.get("features", [])), dict(d.get("before_after", {})), dict(d.get("split", {})),
+                   float(d.get("seconds", 0.0)))  # fmt: skip
 
-        matplotlib.use("Agg")
+    def plot(self, ax=None, kind: str = "effects"):
+        """One picture of the report; returns its axes (``None`` when the report has no data for it).
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+            For ``kind="boxes"`` one per disturbance channel.  (A folder
+            instead writes every picture, as :meth:`save_plots`.)
+        kind : {"effects", "boxes", "tubes"}
+            Effect ranking by the shrink of the minimal W volume; the
+            per-channel minimal W before/after; the reach tubes of a held-out
+            case before/after with its measurements.
+        """
         import matplotlib.pyplot as plt
 
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = []
-        scored = [e for e in self.ranked_effects if e.get("shrink_volume") is not None]
-        if scored:
-            fig, ax = plt.subplots(figsize=(7, 0.4 * len(scored) + 1.5))
+        if isinstance(ax, (str, Path)):  # the old plot(out): write the PNGs
+            return self.save_plots(ax)
+        if kind == "effects":
+            scored = [e for e in self.ranked_effects if e.get("shrink_volume") is not None]
+            if not scored:
+                return None
+            if ax is None:
+                _, ax = plt.subplots(figsize=(7, 0.4 * len(scored) + 1.5))
             labels = [f"{e['effect']}({e['target']})" for e in scored][::-1]
             ax.barh(labels, [e["shrink_volume"] for e in scored][::-1], color="tab:blue")
             ax.axvline(1.0, color="k", lw=0.8)
             ax.set_xscale("log")
             ax.set_xlabel("shrink of the minimal trace-conformant W volume (held-out cases)")
             ax.set_title(self.verdict[:90], fontsize=8)
-            fig.tight_layout()
-            paths.append(_save(fig, out / "effects.png"))
-        ba = self.before_after.get("W")
-        if ba:
+        elif kind == "boxes":
+            ba = self.before_after.get("W")
+            if not ba:
+                return None
             chans = list(ba)
-            fig, axes = plt.subplots(1, len(chans), figsize=(2.4 * len(chans), 3))
-            for ax, ch in zip(np.atleast_1d(axes), chans):
-                b, a = ba[ch]["before"], ba[ch]["after"]
-                ax.bar([0, 1], [b[1] - b[0], a[1] - a[0]], bottom=[b[0], a[0]], color=["tab:gray", "tab:green"])
-                ax.set_xticks([0, 1], ["base", "effect"])
-                ax.set_title(f"{ch}: x{ba[ch]['shrink']:.2f}", fontsize=9)
-            fig.suptitle("minimal trace-conformant W, before/after", fontsize=9)
-            fig.tight_layout()
-            paths.append(_save(fig, out / "boxes.png"))
-        drawn = [tb for tb in self.tubes if "tube" in tb]
-        if drawn:
-            fig, ax = plt.subplots(figsize=(8, 4))
-            colors = {"base": "tab:gray", "with effect": "tab:green"}
-            for tb in drawn:
-                tb["tube"].plot(dims=tuple(tb["tube"].state_names[:2]), ax=ax, color=colors.get(tb["label"], "tab:blue"),
-                                alpha=0.35)  # fmt: skip
-            ax.plot(*drawn[0]["measured"].T, "k.", ms=2, label="measured")
+            if ax is None:
+                fig, ax = plt.subplots(1, len(chans), figsize=(2.4 * len(chans), 3))
+                fig.suptitle("minimal trace-conformant W, before/after", fontsize=9)
+            ax = np.atleast_1d(ax)
+            for a, ch in zip(ax, chans):
+                b, af = ba[ch]["before"], ba[ch]["after"]
+                a.bar([0, 1], [b[1] - b[0], af[1] - af[0]], bottom=[b[0], af[0]], color=["tab:gray", "tab:green"])
+                a.set_xticks([0, 1], ["base", "effect"])
+                a.set_title(f"{ch}: x{ba[ch]['shrink']:.2f}", fontsize=9)
+        elif kind == "tubes":
+            drawn = [tb for tb in self.tubes if "tube" in tb]
+            if not drawn:
+                return None
             from matplotlib.patches import Patch
 
+            if ax is None:
+                _, ax = plt.subplots(figsize=(8, 4))
+            colors = {"base": "tab:gray", "with effect": "tab:green"}
+            for tb in drawn:
+                tb["tube"].plot(ax=ax, color=colors.get(tb["label"], "tab:blue"), alpha=0.35)
+            plot_measured(ax, drawn[0]["measured"], drawn[0]["tube"].state_names[:2], ms=2)
             ax.legend(handles=[Patch(color=colors[t["label"]], alpha=0.5, label=f"{t['label']} (W minimal box)")
                                for t in drawn if t["label"] in colors] + ax.get_legend_handles_labels()[0],
                       fontsize=8)  # fmt: skip
-            ax.set_xlabel("X [m]")
-            ax.set_ylabel("Y [m]")
             ax.set_title("reach tubes of a held-out case, before and after modelling the effect", fontsize=9)
-            fig.tight_layout()
-            paths.append(_save(fig, out / "tubes.png"))
+        else:
+            raise OptionsError(f"GapReport.plot: kind must be 'effects', 'boxes' or 'tubes', got {kind!r}")
+        np.atleast_1d(ax)[0].figure.tight_layout()
+        return ax
+
+    def save_plots(self, out) -> list:
+        """PNGs into folder ``out``: ``effects.png``, ``boxes.png``, ``tubes.png`` (those with data); returns the paths."""
+        import matplotlib.pyplot as plt
+
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = []
+        for kind in ("effects", "boxes", "tubes"):
+            ax = self.plot(kind=kind)
+            if ax is None:
+                continue
+            fig = np.atleast_1d(ax)[0].figure
+            paths.append(str(save_figure(fig, out / f"{kind}.png", dpi=110, bbox_inches=None)))
+            plt.close(fig)
         return paths
-
-
-def _save(fig, path):
-    import io
-
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    atomic_write(path, buf.getvalue())
-    return str(path)

@@ -10,6 +10,7 @@ of the package is written.
 from reachconf.io.atomic import atomic_write, atomic_write_text
 from reachconf.io.cases import TestCase, TestSuite, case_arrays, check_signals
 from reachconf.io.files import UNITS, load_case, load_suite, save_case, save_suite
+from reachconf.io.results import JsonResult, read_json
 
 __all__ = ["TestCase", "TestSuite", "load_suite", "save_suite", "load_case", "save_case", "UNITS", "atomic_write",
-           "atomic_write_text", "check_signals", "case_arrays"]  # fmt: skip
+           "atomic_write_text", "check_signals", "case_arrays", "JsonResult", "read_json"]  # fmt: skip

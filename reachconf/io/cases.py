@@ -190,6 +190,40 @@ class TestCase:
         Y = np.array(np.asarray(Y, dtype=float).reshape(t.size, model.p), order="C")
         return t, U, Y
 
+    def with_requests(self, maps=None, inputs=None, suffix: str = "_req") -> "TestCase":
+        """The case driven by the requested instead of the measured actuator signals.
+
+        Every input ``u`` (default: each input with a signal ``u + suffix``)
+        becomes ``a * u_req + b`` with ``(a, b) = maps[u]`` (default ``(1, 0)``:
+        the request itself); the request signals are consumed, other extras kept.
+
+        Parameters
+        ----------
+        maps : dict input name -> (a, b), optional
+            Affine maps from the request to the input's unit (e.g. a steering
+            ratio, or a fit of the measured against the requested signal).
+        inputs : sequence of str, optional
+        suffix : str, default "_req"
+
+        Returns
+        -------
+        TestCase
+
+        Raises
+        ------
+        DataError
+            If an input has no request signal.
+        """
+        sig = dict(self.signals)
+        inputs = [u for u in self.input_names if u + suffix in sig] if inputs is None else list(inputs)
+        missing = [u + suffix for u in inputs if u + suffix not in sig]
+        if missing:
+            raise DataError(f"test case {self.name!r} has no request signals {missing}")
+        maps = dict(maps or {})
+        for u in inputs:
+            sig[u] = np.polyval(maps.get(u, (1.0, 0.0)), sig.pop(u + suffix))
+        return TestCase.from_signals(self.name, self.t, sig, self.input_names, self.output_names, self.group)
+
     def rename(self, mapping: dict) -> "TestCase":
         sig = {mapping.get(k, k): v for k, v in self.signals.items()}
         ins = tuple(mapping.get(n, n) for n in self.input_names)

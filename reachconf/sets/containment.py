@@ -25,7 +25,7 @@ _LP_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_toleranc
 
 
 def contains_points_lp(c, G, P, tol=1e-9):
-    """Reference: one LP per point (min t s.t. |G b - d| <= slack, |b| <= t)."""
+    """Reference: one LP per point (``min t`` s.t. ``|G b - d| <= slack``, ``|b| <= t``)."""
     from scipy.optimize import linprog
 
     n, m = G.shape

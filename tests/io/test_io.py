@@ -132,3 +132,18 @@ def test_cli_reports_bad_data_in_one_line(tmp_path):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("reachconf: error:") and "bad.csv" in lines[0]
     assert "Traceback" not in proc.stderr
+
+
+def test_with_requests_replaces_inputs_by_mapped_requests():
+    t = np.linspace(0, 1, 6)
+    sig = {"a": np.sin(t), "d": np.cos(t), "a_req": 2 * np.sin(t), "d_req": np.cos(t) / 3, "ref": t, "y": t**2}
+    case = TestCase.from_signals("c", t, sig, ("a", "d"), ("y",), group="g")
+    req = case.with_requests({"d": (3.0, 0.5)})
+    np.testing.assert_array_equal(req.signal("a"), sig["a_req"])
+    np.testing.assert_allclose(req.signal("d"), 3.0 * sig["d_req"] + 0.5)
+    assert set(req.extras) == {"ref"} and req.input_names == ("a", "d") and req.group == "g"
+    only = case.with_requests(inputs=["a"])
+    np.testing.assert_array_equal(only.signal("d"), sig["d"])
+    assert "d_req" in only.extras
+    with pytest.raises(rc.DataError, match="no request signals"):
+        only.with_requests(inputs=["a"])
