@@ -55,6 +55,7 @@ def _savefig(fig, path: Path):
 
 
 def cmd_demo(args):
+    """``reachconf demo``: the main job on the shipped lane-change suite."""
     from reachconf.demo import run_demo
 
     summary = run_demo(args.out or "demo", workers=args.workers)
@@ -75,6 +76,7 @@ def _select_cases(spec, args):
 
 
 def cmd_reach(args):
+    """``reachconf reach RUN.toml``: reach tubes per test case (``.npz`` and X-Y pictures)."""
     import matplotlib.pyplot as plt
 
     from reachconf.conformance.reachset import initial_set
@@ -107,6 +109,7 @@ def cmd_reach(args):
 
 
 def cmd_conform(args):
+    """``reachconf conform RUN.toml``: trace and/or reachset conformance per test case."""
     from reachconf.conformance.reachset import reachset_conformance
     from reachconf.conformance.trace import trace_conformance
 
@@ -140,6 +143,7 @@ def cmd_conform(args):
 
 
 def cmd_synth(args):
+    """``reachconf synth RUN.toml``: the minimal disturbance set (steps 1-3 and the merge)."""
     import matplotlib.pyplot as plt
 
     from reachconf.conformance.synthesis import synthesize_W
@@ -166,6 +170,7 @@ def cmd_synth(args):
 
 
 def cmd_plot(args):
+    """``reachconf plot FILE``: draw a saved result (tube ``.npz`` or result ``.json``)."""
     import matplotlib.pyplot as plt
 
     path = Path(args.result)
@@ -250,6 +255,7 @@ def _load(args):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``argparse`` parser of the command line."""
     p = argparse.ArgumentParser(prog="reachconf", description="Reachability-based conformance checking.")
     sub = p.add_subparsers(dest="command", required=True)
 
@@ -287,6 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    """Run the command line with ``argv`` (default ``sys.argv[1:]``); returns the exit status (0, 2 on user errors, 130 on Ctrl-C)."""
     os.environ.setdefault("MPLBACKEND", "Agg")
     parser = build_parser()
     args = parser.parse_args(argv)

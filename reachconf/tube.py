@@ -39,10 +39,12 @@ class Containment:
 
     @property
     def conformant(self) -> bool:
+        """Every measurement inside its set."""
         return bool(np.all(self.inside))
 
     @property
     def first_violation_time(self):
+        """Time of the first measurement outside, or None."""
         return None if self.first_violation is None else float(self.times[self.first_violation])
 
 
@@ -93,6 +95,7 @@ class ReachTube:
 
     @classmethod
     def from_branches(cls, *, model, samples, step_offsets, t_start, dts, X0, branches, options, W, splits, seconds):
+        """The tube from the arrays of :func:`reachconf.reach.reach_run`'s branches (use :meth:`from_run`)."""
         S = dts.size
         ti_pieces = [[] for _ in range(S)]
         tp_pieces = [[] for _ in range(S)]
@@ -173,6 +176,7 @@ class ReachTube:
         return out
 
     def final_set(self):
+        """The time-point set at the last sample time."""
         return self.time_point_sets[-1]
 
     # -------------------------------------------------------- conformance

@@ -91,26 +91,31 @@ def const(x):
 
 @njit(cache=True, inline="always")
 def hull(alo, ahi, blo, bhi):
+    """Interval hull of two intervals: ``(min(alo, blo), max(ahi, bhi))``."""
     return (alo if alo < blo else blo), (ahi if ahi > bhi else bhi)
 
 
 @njit(cache=True, inline="always")
 def contains_zero(lo, hi):
+    """True if ``0`` lies in ``[lo, hi]``."""
     return lo <= 0.0 <= hi
 
 
 @njit(cache=True, inline="always")
 def add(alo, ahi, blo, bhi):
+    """``[a] + [b]``, outward rounded."""
     return down(alo + blo), up(ahi + bhi)
 
 
 @njit(cache=True, inline="always")
 def sub(alo, ahi, blo, bhi):
+    """``[a] - [b]``, outward rounded."""
     return down(alo - bhi), up(ahi - blo)
 
 
 @njit(cache=True, inline="always")
 def neg(alo, ahi):
+    """``-[a]`` (exact)."""
     return -ahi, -alo
 
 
@@ -130,11 +135,13 @@ def _outward4(a, b, c, d):
 
 @njit(cache=True)
 def mul(alo, ahi, blo, bhi):
+    """``[a] * [b]``, outward rounded (``0 * inf = 0``)."""
     return _outward4(_prod(alo, blo), _prod(alo, bhi), _prod(ahi, blo), _prod(ahi, bhi))
 
 
 @njit(cache=True)
 def div(alo, ahi, blo, bhi):
+    """``[a] / [b]``, outward rounded; ``ZeroDivisionError`` if ``[b]`` contains 0."""
     if blo <= 0.0 <= bhi:
         raise ZeroDivisionError("interval division by an interval containing 0")
     return _outward4(alo / blo, alo / bhi, ahi / blo, ahi / bhi)
@@ -142,6 +149,7 @@ def div(alo, ahi, blo, bhi):
 
 @njit(cache=True)
 def sqr(alo, ahi):
+    """``[a]^2`` (tighter than ``[a] * [a]`` when ``[a]`` contains 0), outward rounded."""
     if alo >= 0.0:
         return down(alo * alo), up(ahi * ahi)
     if ahi <= 0.0:
@@ -214,6 +222,7 @@ def _pow_nonneg(alo, ahi, k):
 
 @njit(cache=True)
 def sqrt(alo, ahi):
+    """``sqrt([a])``, outward rounded; ``ValueError`` below 0."""
     if alo < 0.0:
         raise ValueError("interval sqrt of an interval reaching below 0")
     lo = down(math.sqrt(alo))
@@ -222,12 +231,14 @@ def sqrt(alo, ahi):
 
 @njit(cache=True)
 def exp(alo, ahi):
+    """``exp([a])``, widened for the C library's rounding."""
     lo = _down_n(math.exp(alo), TRANSCENDENTAL_ULPS)
     return (lo if lo > 0.0 else 0.0), _up_n(math.exp(ahi), TRANSCENDENTAL_ULPS)
 
 
 @njit(cache=True)
 def log(alo, ahi):
+    """``log([a])``, widened for the C library's rounding; ``ValueError`` for ``lo <= 0``."""
     if alo <= 0.0:
         raise ValueError("interval log of an interval reaching 0 or below")
     return _down_n(math.log(alo), TRANSCENDENTAL_ULPS), _up_n(math.log(ahi), TRANSCENDENTAL_ULPS)
@@ -235,11 +246,13 @@ def log(alo, ahi):
 
 @njit(cache=True)
 def atan(alo, ahi):
+    """``atan([a])``, widened for the C library's rounding."""
     return _down_n(math.atan(alo), TRANSCENDENTAL_ULPS), _up_n(math.atan(ahi), TRANSCENDENTAL_ULPS)
 
 
 @njit(cache=True)
 def tanh(alo, ahi):
+    """``tanh([a])``, widened for the C library's rounding and clamped to ``[-1, 1]``."""
     lo = _down_n(math.tanh(alo), TRANSCENDENTAL_ULPS)
     hi = _up_n(math.tanh(ahi), TRANSCENDENTAL_ULPS)
     return (lo if lo > -1.0 else -1.0), (hi if hi < 1.0 else 1.0)
@@ -271,6 +284,7 @@ def _contains_point(alo, ahi, offset):
 
 @njit(cache=True)
 def cos(alo, ahi):
+    """``cos([a])`` with its extrema inside the interval, widened and clamped to ``[-1, 1]``."""
     if ahi - alo >= _TWO_PI_LO or not (math.isfinite(alo) and math.isfinite(ahi)):
         return -1.0, 1.0
     ca = math.cos(alo)
@@ -288,6 +302,7 @@ def cos(alo, ahi):
 
 @njit(cache=True)
 def sin(alo, ahi):
+    """``sin([a])`` with its extrema inside the interval, widened and clamped to ``[-1, 1]``."""
     if ahi - alo >= _TWO_PI_LO or not (math.isfinite(alo) and math.isfinite(ahi)):
         return -1.0, 1.0
     sa = math.sin(alo)
@@ -305,6 +320,7 @@ def sin(alo, ahi):
 
 @njit(cache=True)
 def tan(alo, ahi):
+    """``tan([a])``, widened; ``ValueError`` across a pole."""
     if ahi - alo >= _PI_LO or _contains_point(alo, ahi, _HALF_PI) or _contains_point(alo, ahi, -_HALF_PI):
         raise ValueError("interval tan across a pole")
     margin = _mx(_trig_margin(alo), _trig_margin(ahi))
@@ -316,6 +332,7 @@ def tan(alo, ahi):
 
 @njit(cache=True)
 def abs(alo, ahi):
+    """``|[a]|`` (exact)."""
     if alo >= 0.0:
         return alo, ahi
     if ahi <= 0.0:
@@ -325,11 +342,13 @@ def abs(alo, ahi):
 
 @njit(cache=True)
 def min(alo, ahi, blo, bhi):
+    """Elementwise minimum ``min([a], [b])`` (exact)."""
     return (alo if alo < blo else blo), (ahi if ahi < bhi else bhi)
 
 
 @njit(cache=True)
 def max(alo, ahi, blo, bhi):
+    """Elementwise maximum ``max([a], [b])`` (exact)."""
     return (alo if alo > blo else blo), (ahi if ahi > bhi else bhi)
 
 

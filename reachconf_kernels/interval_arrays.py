@@ -19,6 +19,7 @@ __all__ = ["add", "sub", "mul", "div", "min", "max", "neg", "sqr", "sqrt", "exp"
 
 @njit(cache=True)
 def add(alo, ahi, blo, bhi):
+    """``[a] + [b]``, outward rounded (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -27,6 +28,7 @@ def add(alo, ahi, blo, bhi):
 
 @njit(cache=True)
 def sub(alo, ahi, blo, bhi):
+    """``[a] - [b]``, outward rounded (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -35,6 +37,7 @@ def sub(alo, ahi, blo, bhi):
 
 @njit(cache=True)
 def mul(alo, ahi, blo, bhi):
+    """``[a] * [b]``, outward rounded (``0 * inf = 0``) (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -43,6 +46,7 @@ def mul(alo, ahi, blo, bhi):
 
 @njit(cache=True)
 def div(alo, ahi, blo, bhi):
+    """``[a] / [b]``, outward rounded; ``ZeroDivisionError`` if ``[b]`` contains 0 (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -51,6 +55,7 @@ def div(alo, ahi, blo, bhi):
 
 @njit(cache=True)
 def min(alo, ahi, blo, bhi):
+    """Elementwise minimum ``min([a], [b])`` (exact) (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -59,6 +64,7 @@ def min(alo, ahi, blo, bhi):
 
 @njit(cache=True)
 def max(alo, ahi, blo, bhi):
+    """Elementwise maximum ``max([a], [b])`` (exact) (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -67,6 +73,7 @@ def max(alo, ahi, blo, bhi):
 
 @njit(cache=True)
 def neg(alo, ahi):
+    """``-[a]`` (exact) (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -75,6 +82,7 @@ def neg(alo, ahi):
 
 @njit(cache=True)
 def sqr(alo, ahi):
+    """``[a]^2`` (tighter than ``[a] * [a]`` when ``[a]`` contains 0), outward rounded (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -83,6 +91,7 @@ def sqr(alo, ahi):
 
 @njit(cache=True)
 def sqrt(alo, ahi):
+    """``sqrt([a])``, outward rounded; ``ValueError`` below 0 (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -91,6 +100,7 @@ def sqrt(alo, ahi):
 
 @njit(cache=True)
 def exp(alo, ahi):
+    """``exp([a])``, widened for the C library's rounding (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -99,6 +109,7 @@ def exp(alo, ahi):
 
 @njit(cache=True)
 def log(alo, ahi):
+    """``log([a])``, widened for the C library's rounding; ``ValueError`` for ``lo <= 0`` (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -107,6 +118,7 @@ def log(alo, ahi):
 
 @njit(cache=True)
 def sin(alo, ahi):
+    """``sin([a])`` with its extrema inside the interval, widened and clamped to ``[-1, 1]`` (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -115,6 +127,7 @@ def sin(alo, ahi):
 
 @njit(cache=True)
 def cos(alo, ahi):
+    """``cos([a])`` with its extrema inside the interval, widened and clamped to ``[-1, 1]`` (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -123,6 +136,7 @@ def cos(alo, ahi):
 
 @njit(cache=True)
 def tan(alo, ahi):
+    """``tan([a])``, widened; ``ValueError`` across a pole (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -131,6 +145,7 @@ def tan(alo, ahi):
 
 @njit(cache=True)
 def atan(alo, ahi):
+    """``atan([a])``, widened for the C library's rounding (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -140,6 +155,7 @@ def atan(alo, ahi):
 
 @njit(cache=True)
 def tanh(alo, ahi):
+    """``tanh([a])``, widened for the C library's rounding and clamped to ``[-1, 1]`` (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):
@@ -148,6 +164,7 @@ def tanh(alo, ahi):
 
 @njit(cache=True)
 def abs(alo, ahi):
+    """``|[a]|`` (exact) (elementwise on ``lo, hi`` arrays)."""
     lo = np.empty_like(alo)
     hi = np.empty_like(alo)
     for i in range(alo.shape[0]):

@@ -90,6 +90,7 @@ def linear_map(M, c, G):
 
 @njit(cache=True)
 def minkowski_sum(c1, G1, c2, G2):
+    """Minkowski sum of ``Z(c1, G1)`` and ``Z(c2, G2)``: ``(c1 + c2, [G1 G2])`` (centre outward-rounding in the generators)."""
     n = c1.shape[0]
     G = np.empty((n, G1.shape[1] + G2.shape[1]))
     G[:, : G1.shape[1]] = G1
@@ -99,12 +100,14 @@ def minkowski_sum(c1, G1, c2, G2):
 
 @njit(cache=True)
 def add_interval(c, G, lo, hi):
+    """``Z(c, G)`` plus the box ``[lo, hi]``: its centre added, one generator per non-degenerate dimension."""
     cb, Gb = from_interval(lo, hi)
     return minkowski_sum(c, G, cb, Gb)
 
 
 @njit(cache=True)
 def cartesian_product(c1, G1, c2, G2):
+    """Cartesian product of two zonotopes (block-diagonal generators)."""
     n1, n2 = c1.shape[0], c2.shape[0]
     m1, m2 = G1.shape[1], G2.shape[1]
     c = np.empty(n1 + n2)

@@ -133,6 +133,7 @@ class CaseSynthesis:
     alpha_trials: list = field(default_factory=list)
 
     def to_dict(self):
+        """The case result as JSON values."""
         return {"name": self.name, "group": self.group, "W_TC": self.W_TC.to_list(), "W_opt": self.W_opt.to_list(),
                 "W_RC": self.W_RC.to_list(), "alpha": self.alpha, "conformant": self.conformant,
                 "trace_conformant": self.trace_conformant, "seconds": self.seconds,
@@ -176,6 +177,7 @@ class SynthesisResult(JsonResult):
     group_seconds: dict = field(default_factory=dict)
 
     def to_dict(self):
+        """The result as JSON values (boxes as ``[lo, hi]`` pairs)."""
         return {
             "disturbances": list(self.disturbance_names),
             "V": self.V.to_list(),

@@ -153,6 +153,7 @@ class AeroFit:
         return {**self.cp, **self.ct}
 
     def to_dict(self) -> dict:
+        """The fit as JSON values."""
         return {
             "cp": {k: float(v) for k, v in self.cp.items()},
             "ct": {k: float(v) for k, v in self.ct.items()},

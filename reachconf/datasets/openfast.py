@@ -63,10 +63,12 @@ class OpenFASTOutput:
 
     @property
     def names(self) -> list:
+        """Channel names in file order."""
         return list(self.channels)
 
     @property
     def time(self):
+        """The ``Time`` channel (s)."""
         return self["Time"]
 
     def quantisation_step(self, name) -> float:

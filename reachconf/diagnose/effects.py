@@ -104,6 +104,7 @@ class Effect:
                      "param": model.param_names}[self.kind])  # fmt: skip
 
     def apply_signal(self, t, x, theta):
+        """What the system receives (input effects) or the sensor reports (output effects) for the signal ``x``."""
         # writeable contiguous copies: suites loaded from disk hold read-only arrays, compiled filters need mutable ones
         return self.signal(np.array(t, dtype=float, order="C"), np.array(x, dtype=float, order="C"),
                            tuple(float(v) for v in theta))  # fmt: skip

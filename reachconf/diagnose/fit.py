@@ -123,6 +123,7 @@ class PreparedCase:
 
 
 def prepare(model, case, options: DiagnoseOptions) -> PreparedCase:
+    """A :class:`PreparedCase`: the case's arrays, smoothed outputs and prediction windows."""
     from scipy.signal import savgol_filter
 
     t, U, Y = case_arrays(model, case)
@@ -145,6 +146,7 @@ class Candidate:
 
     @property
     def label(self) -> str:
+        """``effect(target) + ...``, or ``base`` for no effect."""
         return " + ".join(f"{e.name}({t})" for e, t in self.parts) if self.parts else "base"
 
 
@@ -216,6 +218,21 @@ def window_residuals(model, cand: Candidate, theta_eff: dict, data, sigma, subst
 
 @dataclass
 class FitResult:
+    """A fitted candidate: the model with its parameters, the effect's parameters and their spread.
+
+    Attributes
+    ----------
+    candidate : Candidate
+    model : Model
+        The base (or transformed) model with the fitted parameters.
+    base_params : dict
+    effect_params : dict (effect, target) -> tuple
+    effect_std : dict (effect, target) -> tuple
+    train_cost : float
+    success : bool
+    message : str
+    """
+
     candidate: Candidate
     model: object  # base (or transformed) model with the fitted parameters
     base_params: dict

@@ -41,6 +41,13 @@ def check_signals(where: str, t, U, Y, input_names, output_names, first_row: int
     return t, U, Y
 
 
+def _frozen(arr: np.ndarray) -> np.ndarray:
+    if arr.flags.writeable:
+        arr = arr.copy()
+        arr.flags.writeable = False
+    return arr
+
+
 @dataclass(frozen=True, eq=False)
 class TestCase:
     """One measured test case ⟨U, Y, T⟩ (section 3.1).
@@ -88,8 +95,9 @@ class TestCase:
         dup = {n for n in names if names.count(n) > 1}
         if dup:
             raise DataError(f"{where}: duplicate signal names {sorted(dup)}")
-        for arr in (t, U, Y, *extras.values()):
-            arr.flags.writeable = False
+        # freeze copies: the caller's arrays stay theirs (and writeable); already frozen ones are shared
+        t, U, Y = (_frozen(a) for a in (t, U, Y))
+        extras = {k: _frozen(v) for k, v in extras.items()}
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "U", U)
         object.__setattr__(self, "Y", Y)
@@ -111,6 +119,7 @@ class TestCase:
 
     @property
     def duration(self) -> float:
+        """``t[-1] - t[0]`` (s)."""
         return float(self.t[-1] - self.t[0])
 
     @property
@@ -225,6 +234,7 @@ class TestCase:
         return TestCase.from_signals(self.name, self.t, sig, self.input_names, self.output_names, self.group)
 
     def rename(self, mapping: dict) -> "TestCase":
+        """The case with signals renamed (``mapping``: old name -> new name)."""
         sig = {mapping.get(k, k): v for k, v in self.signals.items()}
         ins = tuple(mapping.get(n, n) for n in self.input_names)
         outs = tuple(mapping.get(n, n) for n in self.output_names)
@@ -286,9 +296,11 @@ class TestSuite:
         return TestSuite(cases, name=self.name)
 
     def filter(self, predicate) -> "TestSuite":
+        """The cases for which ``predicate(case)`` is true, as a suite."""
         return TestSuite([c for c in self.cases if predicate(c)], name=self.name)
 
     def map(self, fn) -> "TestSuite":
+        """``fn`` applied to every case, as a suite."""
         return TestSuite([fn(c) for c in self.cases], name=self.name)
 
     def __repr__(self):

@@ -305,11 +305,13 @@ class Model:
 
     @property
     def z_symbols(self) -> tuple[sp.Symbol, ...]:
+        """The symbols of ``z = (x, u, w)``, in that order."""
         names = self.state_names + self.input_names + self.disturbance_names
         return tuple(self._symbols[k] for k in names)
 
     @property
     def p_symbols(self) -> tuple[sp.Symbol, ...]:
+        """The parameter symbols in :attr:`param_names` order."""
         return tuple(self._symbols[k] for k in self.param_names)
 
     def index(self, name: str) -> tuple[str, int]:

@@ -102,6 +102,7 @@ class IntervalEmitter:
         self.lines.append(f"{self.indent}    return {len(self.guards)}")
 
     def emit(self, expr) -> tuple[str, str]:
+        """``(lo, hi)`` code names of the interval value of ``expr`` (emitting the lines that compute it once)."""
         if expr in self.var_map:
             return self.var_map[expr]
         key = expr
