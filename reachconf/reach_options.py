@@ -27,6 +27,7 @@ from typing import ClassVar
 import numpy as np
 
 from reachconf.errors import OptionsError
+from reachconf.registry import NamedTypes
 from reachconf.sets.reduction import ReductionMethod, reduction_method
 
 __all__ = ["ReachOptions", "ReachAlgorithm", "ConservativeLinearization", "ConservativePolynomialization",
@@ -105,36 +106,22 @@ class ConservativePolynomialization(ReachAlgorithm):
     default_tensor_order: ClassVar[int] = 3
 
 
-#: name -> algorithm type
-ALGORITHM_TYPES: dict[str, type[ReachAlgorithm]] = {}
+#: name -> algorithm type (``ALGORITHM_TYPES.register`` adds one)
+ALGORITHM_TYPES = NamedTypes(ReachAlgorithm, "reach algorithm")
 
 
 def register_algorithm(cls: type[ReachAlgorithm]) -> type[ReachAlgorithm]:
     """Make a :class:`ReachAlgorithm` subclass known by its ``name`` (usable as a decorator)."""
-    if not (isinstance(cls, type) and issubclass(cls, ReachAlgorithm) and cls.name):
-        raise OptionsError(f"register_algorithm needs a ReachAlgorithm subclass with a name, got {cls!r}")
-    ALGORITHM_TYPES[cls.name] = cls
-    return cls
+    return ALGORITHM_TYPES.register(cls)
+
+
+def reach_algorithm(value) -> ReachAlgorithm:
+    """The algorithm for a name (``"lin"``, ``"poly"``) or an instance (:class:`OptionsError` otherwise)."""
+    return ALGORITHM_TYPES.resolve(value)
 
 
 for _cls in (ConservativeLinearization, ConservativePolynomialization):
     register_algorithm(_cls)
-
-
-def reach_algorithm(value) -> ReachAlgorithm:
-    """The algorithm for a name (``"lin"``, ``"poly"``) or an instance.
-
-    Raises
-    ------
-    OptionsError
-        For an unknown name or another type.
-    """
-    if isinstance(value, ReachAlgorithm):
-        return value
-    if isinstance(value, str) and value in ALGORITHM_TYPES:
-        return ALGORITHM_TYPES[value]()
-    raise OptionsError(f"ReachOptions.algorithm must be one of {tuple(ALGORITHM_TYPES)} or an instance of "
-                       f"{', '.join(c.__name__ for c in ALGORITHM_TYPES.values())}, got {value!r}")  # fmt: skip
 
 
 @dataclass(frozen=True)

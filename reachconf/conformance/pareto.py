@@ -60,9 +60,8 @@ class ParetoFront(JsonResult):
     @classmethod
     def from_dict(cls, d: dict) -> "ParetoFront":
         """The front from :meth:`to_dict`."""
-        box = (lambda pairs: Interval(*np.asarray(pairs, dtype=float).reshape(-1, 2).T))  # noqa: E731
-        return cls([box(e["box"]) for e in d["front"]], [tuple(e["order"]) for e in d["front"]], box(d["start"]),
-                   tuple(d["disturbances"]), d["check"])  # fmt: skip
+        return cls([Interval.from_list(e["box"]) for e in d["front"]], [tuple(e["order"]) for e in d["front"]],
+                   Interval.from_list(d["start"]), tuple(d["disturbances"]), d["check"])  # fmt: skip
 
     def plot(self, ax=None):
         """Parallel coordinates: the channel widths of each box, normalised by the start box; returns the axes."""

@@ -143,7 +143,7 @@ class CaseSynthesis:
     @classmethod
     def from_dict(cls, d: dict) -> "CaseSynthesis":
         """The case result from :meth:`to_dict`."""
-        box = (lambda pairs: Interval(*np.asarray(pairs, dtype=float).reshape(-1, 2).T))  # noqa: E731
+        box = Interval.from_list
         return cls(d["name"], d["group"], box(d["W_TC"]), box(d["W_opt"]), box(d["W_RC"]), float(d["alpha"]),
                    bool(d["conformant"]), float(d["seconds"]), dict(d.get("step_seconds", {})),
                    bool(d.get("trace_conformant", False)), d.get("message", ""),
@@ -192,10 +192,10 @@ class SynthesisResult(JsonResult):
     @classmethod
     def from_dict(cls, d: dict) -> "SynthesisResult":
         """The result from :meth:`to_dict`."""
-        box = (lambda pairs: Interval(*np.asarray(pairs, dtype=float).reshape(-1, 2).T))  # noqa: E731
         return cls({k: CaseSynthesis.from_dict(c) for k, c in d["cases"].items()},
-                   {g: box(W) for g, W in d["groups"].items()}, dict(d["group_alpha"]), dict(d["group_conformant"]),
-                   box(d["V"]), tuple(d["disturbances"]), float(d["seconds"]), dict(d.get("group_seconds", {})))  # fmt: skip
+                   {g: Interval.from_list(W) for g, W in d["groups"].items()}, dict(d["group_alpha"]),
+                   dict(d["group_conformant"]), Interval.from_list(d["V"]), tuple(d["disturbances"]), float(d["seconds"]),
+                   dict(d.get("group_seconds", {})))  # fmt: skip
 
     def plot(self, ax=None):
         """``W_RC,Mnvr`` per group: one axes per disturbance channel, a bar per group; returns the axes.

@@ -159,6 +159,12 @@ class Interval:
         """Draw the projection on ``dims`` (see :meth:`Zonotope.plot`); returns the axes."""
         return self.to_zonotope().plot(ax, dims=dims, **style)
 
+    @classmethod
+    def from_list(cls, pairs) -> "Interval":
+        """The box of ``[[lo_0, hi_0], ...]`` (the inverse of :meth:`to_list`)."""
+        arr = np.asarray(pairs, dtype=float).reshape(-1, 2)
+        return cls(arr[:, 0], arr[:, 1])
+
     def to_list(self):
         """``[[lo_0, hi_0], ...]`` as plain floats (JSON, run files)."""
         return [[float(a), float(b)] for a, b in zip(self.lo, self.hi)]

@@ -17,7 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from reachconf.errors import OptionsError
+from reachconf.registry import NamedTypes
 from reachconf_kernels import zonotope as zk
 
 __all__ = ["ReductionMethod", "Girard", "PCA", "REDUCTION_METHODS", "reduction_method", "register_reduction"]
@@ -83,33 +83,19 @@ class PCA(ReductionMethod):
         return zk.reduce_pca(c, G, float(order))
 
 
-#: name -> method type
-REDUCTION_METHODS: dict[str, type[ReductionMethod]] = {}
+#: name -> method type (``REDUCTION_METHODS.register`` adds one)
+REDUCTION_METHODS = NamedTypes(ReductionMethod, "reduction method")
 
 
 def register_reduction(cls: type[ReductionMethod]) -> type[ReductionMethod]:
     """Make a :class:`ReductionMethod` subclass known by its ``name`` (usable as a decorator)."""
-    if not (isinstance(cls, type) and issubclass(cls, ReductionMethod) and cls.name):
-        raise OptionsError(f"register_reduction needs a ReductionMethod subclass with a name, got {cls!r}")
-    REDUCTION_METHODS[cls.name] = cls
-    return cls
+    return REDUCTION_METHODS.register(cls)
+
+
+def reduction_method(value) -> ReductionMethod:
+    """The method for a name (``"girard"``, ``"pca"``) or an instance (:class:`OptionsError` otherwise)."""
+    return REDUCTION_METHODS.resolve(value)
 
 
 for _cls in (Girard, PCA):
     register_reduction(_cls)
-
-
-def reduction_method(value) -> ReductionMethod:
-    """The method for a name (``"girard"``, ``"pca"``) or an instance.
-
-    Raises
-    ------
-    OptionsError
-        For an unknown name or another type.
-    """
-    if isinstance(value, ReductionMethod):
-        return value
-    if isinstance(value, str) and value in REDUCTION_METHODS:
-        return REDUCTION_METHODS[value]()
-    raise OptionsError(f"unknown reduction method {value!r}; use one of {tuple(REDUCTION_METHODS)} or an instance "
-                       f"of {', '.join(c.__name__ for c in REDUCTION_METHODS.values())}")  # fmt: skip
