@@ -1,8 +1,12 @@
 """Atomic file writes: the one writer every result, cache file and picture goes through.
 
-A reader never sees a half-written file: the data goes to a temporary file in
-the target folder, which then replaces the target in one ``os.replace``.  An
-interrupted write (Ctrl-C, a full disk) leaves the old file, if any, in place.
+A reader never sees a half-written file: the data goes to a temporary file
+with a unique name (``.<name>.<random>``) in the target folder, which then
+replaces the target in one ``os.replace`` (or, with ``overwrite=False``, is
+linked to it only if the target does not exist yet).  An interrupted write
+(Ctrl-C, a full disk) leaves the old file, if any, in place and no temporary
+file behind.  Errors are :class:`~reachconf.errors.OutputError` naming the
+target, never the temporary file.
 """
 
 from __future__ import annotations
@@ -11,10 +15,26 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_write", "atomic_write_text"]
+from reachconf.errors import OutputError
+
+__all__ = ["atomic_write", "atomic_write_text", "write_new"]
 
 
-def atomic_write(path, data: bytes | str) -> Path:
+def _reason(exc: OSError) -> str:
+    return exc.strerror or str(exc) or type(exc).__name__
+
+
+def _make_parent(path: Path):
+    parent = path.parent
+    if parent.exists() and not parent.is_dir():
+        raise OutputError(f"{path}: cannot write: {parent} is a file, not a folder")
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot create its folder {parent}: {_reason(exc)}") from None
+
+
+def atomic_write(path, data: bytes | str, overwrite: bool = True) -> Path:
     """Write ``data`` to ``path`` atomically; create the parent folders.
 
     Parameters
@@ -25,31 +45,95 @@ def atomic_write(path, data: bytes | str) -> Path:
         The whole content; a ``str`` is written as UTF-8.  Arrays and figures
         are written by serialising them to bytes first (``np.savez`` or
         ``fig.savefig`` into an ``io.BytesIO``).
+    overwrite : bool, default True
+        If False, the file is created only if ``path`` does not exist (an
+        atomic link; :class:`FileExistsError` otherwise, nothing written).
 
     Returns
     -------
     Path
         ``path``.
+
+    Raises
+    ------
+    OutputError
+        The folder is not writable, ``path`` is a folder, its parent is a
+        file, ...: the message names ``path``.
+    FileExistsError
+        ``overwrite=False`` and ``path`` exists.
     """
-    path = Path(path)
+    path = given = Path(path)
     if isinstance(data, str):
         data = data.encode("utf-8")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    if path.is_dir():
+        raise OutputError(f"{path}: is a folder, expected a file name")
+    if path.is_symlink():  # write the file it points to (the link stays)
+        path = Path(os.path.realpath(path))
+    if path.exists() and not path.is_file():  # a device or pipe (/dev/stdout): stream into it, never replace it
+        try:
+            with open(path, "wb") as fh:
+                fh.write(data)
+        except OSError as exc:
+            raise OutputError(f"{path}: cannot write: {_reason(exc)}") from None
+        return given
+    _make_parent(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot write into {path.parent}: {_reason(exc)}") from None
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the usual permissions
-        os.replace(tmp, path)
+        if overwrite:
+            os.replace(tmp, path)
+        else:
+            _link_new(tmp, path)
+    except FileExistsError:
+        os.unlink(tmp)
+        raise
+    except OSError as exc:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise OutputError(f"{path}: cannot write: {_reason(exc)}") from None
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
-    return path
+    return given
+
+
+def _link_new(tmp, path):
+    """Move ``tmp`` to ``path`` only if ``path`` does not exist (FileExistsError otherwise)."""
+    try:
+        os.link(tmp, path)  # atomic, and fails if path exists: never replaces an earlier file
+    except FileExistsError:
+        raise
+    except OSError:  # no hard links here (FAT, some network file systems): reserve the name, then replace
+        os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
+        os.replace(tmp, path)
+        return
+    os.unlink(tmp)
 
 
 def atomic_write_text(path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically: :func:`atomic_write` for text."""
     return atomic_write(path, text)
+
+
+def write_new(path, data: bytes | str) -> Path:
+    """Write ``data`` to a file that does not exist yet: ``path``, else ``stem-2.suffix``, ``stem-3.suffix``, ...
+
+    Used for partial results (Ctrl-C), which must never replace an earlier
+    file.  Returns the path written.
+    """
+    path = Path(path)
+    for k in range(1, 10_000):
+        target = path if k == 1 else path.with_name(f"{path.stem}-{k}{path.suffix}")
+        try:
+            return atomic_write(target, data, overwrite=False)
+        except FileExistsError:
+            continue
+    raise OutputError(f"{path}: 10,000 files of this name exist already")

@@ -8,14 +8,44 @@ import numpy as np
 
 from reachconf.errors import DataError
 
-__all__ = ["TestCase", "TestSuite", "check_signals", "case_arrays"]
+__all__ = ["TestCase", "TestSuite", "check_signals", "case_arrays", "real_array", "suite_cases"]
 
 
-def check_signals(where: str, t, U, Y, input_names, output_names, first_row: int = 1):
-    """Validate shapes and values; ``first_row`` is the row number of sample 0 in messages (2 in a CSV)."""
-    t = np.asarray(t, dtype=float)
-    U = np.asarray(U, dtype=float)
-    Y = np.asarray(Y, dtype=float)
+def real_array(where: str, name: str, value) -> np.ndarray:
+    """``value`` as a float array; complex, string, boolean or other non-numeric data is a DataError naming it.
+
+    (``np.asarray(x, dtype=float)`` alone drops imaginary parts with only a
+    warning and parses strings such as ``"1_0"``.)
+    """
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError) as exc:  # ragged nested lists
+        raise DataError(f"{where}: {name} is not an array of numbers ({exc})") from None
+    if arr.dtype.kind in "iuf":
+        return arr.astype(float, copy=False)
+    if arr.dtype.kind == "O":
+        try:
+            if all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+                   for v in arr.flat):  # fmt: skip
+                return arr.astype(float)
+        except (TypeError, ValueError):
+            pass
+    kind = {"c": "complex numbers", "b": "booleans", "U": "strings", "S": "bytes", "O": "Python objects"}
+    raise DataError(f"{where}: {name} must hold real numbers, got {kind.get(arr.dtype.kind, str(arr.dtype))}")
+
+
+def check_signals(where: str, t, U, Y, input_names, output_names, first_row: int = 1, row_numbers=None):
+    """Validate shapes and values (DataError naming ``where``, the row and the column).
+
+    Sample ``i`` is called row ``i + first_row`` in messages, or
+    ``row_numbers[i]`` if given (the line numbers of a CSV file, which skip
+    blank lines).
+    """
+
+    def row(i):
+        return int(row_numbers[i]) if row_numbers is not None else int(i) + first_row
+
+    t, U, Y = (real_array(where, name, v) for name, v in (("t", t), ("U", U), ("Y", Y)))
     if t.ndim != 1:
         raise DataError(f"{where}: t must be 1-D, got shape {t.shape}")
     K = t.size
@@ -31,12 +61,12 @@ def check_signals(where: str, t, U, Y, input_names, output_names, first_row: int
         bad = ~np.isfinite(arr)
         if bad.any():
             r, c = np.argwhere(bad)[0]
-            raise DataError(f"{where}: row {r + first_row}, column {names[c]!r}: value is {arr[r, c]} "
+            raise DataError(f"{where}: row {row(r)}, column {names[c]!r}: value is {arr[r, c]} "
                             "(NaN/inf not allowed)")  # fmt: skip
     dt = np.diff(t)
     if np.any(dt <= 0):
         r = int(np.argmax(dt <= 0))
-        raise DataError(f"{where}: row {r + first_row + 1}, column 't': time is not strictly increasing "
+        raise DataError(f"{where}: row {row(r + 1)}, column 't': time is not strictly increasing "
                         f"({t[r]} then {t[r + 1]})")  # fmt: skip
     return t, U, Y
 
@@ -85,7 +115,7 @@ class TestCase:
         t, U, Y = check_signals(where, self.t, self.U, self.Y, inputs, outputs)
         extras = {}
         for key, val in dict(self.extras).items():
-            arr = np.asarray(val, dtype=float)
+            arr = real_array(where, f"extra signal {key!r}", val)
             if arr.shape != t.shape:
                 raise DataError(f"{where}: extra signal {key!r} has shape {arr.shape}, expected {t.shape}")
             if not np.all(np.isfinite(arr)):
@@ -329,3 +359,26 @@ def case_arrays(model, case):
         hint = "; pass one case of the suite (suite[0])" if isinstance(case, TestSuite) else ""
         raise DataError(f"case must be a reachconf TestCase, got {type(case).__name__}{hint}")
     return case.case_arrays(model)
+
+
+def suite_cases(suite, where: str) -> list:
+    """The cases of ``suite`` (a TestSuite or a sequence of TestCase) as a list; never empty.
+
+    Raises
+    ------
+    DataError
+        ``suite`` is empty, not iterable, or holds something other than
+        TestCase (the message starts with ``where``, e.g. ``"synthesize_W"``).
+    """
+    if isinstance(suite, TestCase):
+        raise DataError(f"{where}: suite must be a TestSuite or a list of TestCase, got one TestCase; "
+                        "pass TestSuite([case])")  # fmt: skip
+    if isinstance(suite, (str, bytes)) or not hasattr(suite, "__iter__"):
+        raise DataError(f"{where}: suite must be a TestSuite or a list of TestCase, got {type(suite).__name__}")
+    cases = list(suite)
+    if not cases:
+        raise DataError(f"{where}: the suite is empty (no test cases)")
+    bad = [type(c).__name__ for c in cases if not isinstance(c, TestCase)]
+    if bad:
+        raise DataError(f"{where}: suite must hold TestCase objects, got {bad[0]}")
+    return cases

@@ -23,15 +23,18 @@ converts units::
     [units]             # column (after renaming) -> unit it is stored in
     delta = "deg"
 
-Every problem raises :class:`reachconf.DataError` naming the file, row and
-column; a suite is either loaded completely or not at all.
+A rename onto a name that another column of the file has (or gets) is an
+error, never a silent choice of one of them.  The readers are strict
+(:mod:`reachconf.io.readers`): plain decimal numbers, UTF-8 with or without a
+byte-order mark, real-valued 1-D arrays in an NPZ.  Every problem raises
+:class:`reachconf.DataError` naming the file, row (the file's line number)
+and column; a suite is either loaded completely or not at all.
 """
 
 from __future__ import annotations
 
-import csv
 import math
-import tomllib
+import os
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +42,7 @@ import numpy as np
 from reachconf.errors import DataError
 from reachconf.io.atomic import atomic_write
 from reachconf.io.cases import TestCase, TestSuite, check_signals
+from reachconf.io.readers import read_csv_columns, read_npz_columns, read_suite_toml
 
 __all__ = ["load_suite", "save_suite", "load_case", "save_case", "UNITS"]
 
@@ -55,70 +59,28 @@ UNITS = {
 # --------------------------------------------------------------------------- reading
 
 
-def _read_toml(folder: Path) -> dict:
-    path = folder / "suite.toml"
-    if not path.exists():
-        return {}
-    try:
-        with open(path, "rb") as fh:
-            cfg = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise DataError(f"{path}: invalid TOML: {exc}") from None
-    known = {"name", "inputs", "outputs", "extras", "groups", "rename", "units", "description"}
-    unknown = set(cfg) - known
-    if unknown:
-        raise DataError(f"{path}: unknown keys {sorted(unknown)}; allowed: {sorted(known)}")
-    for key in ("groups", "rename", "units"):
-        if key in cfg and not isinstance(cfg[key], dict):
-            raise DataError(f"{path}: [{key}] must be a table")
-    for key in ("inputs", "outputs", "extras"):
-        if key in cfg and not (isinstance(cfg[key], list) and all(isinstance(s, str) for s in cfg[key])):
-            raise DataError(f"{path}: {key} must be a list of column names")
-    return cfg
+def _path_argument(path, what: str) -> Path:
+    if not isinstance(path, (str, os.PathLike)) or (isinstance(path, str) and not path):
+        raise DataError(f"{what} must be a path (str or pathlib.Path), got {path!r}")
+    return Path(path)
 
 
-def _read_csv_columns(path: Path) -> dict:
-    try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
-    except UnicodeDecodeError as exc:
-        raise DataError(f"{path}: not a text CSV file ({exc.reason})") from None
-    rows = [r for r in rows if r and not (len(r) == 1 and not r[0].strip())]
-    if not rows:
-        raise DataError(f"{path}: file is empty")
-    header = [h.strip() for h in rows[0]]
-    if any(not h for h in header):
-        raise DataError(f"{path}: row 1: empty column name in the header")
-    dup = {h for h in header if header.count(h) > 1}
-    if dup:
-        raise DataError(f"{path}: row 1: duplicate columns {sorted(dup)}")
-    data = np.empty((len(rows) - 1, len(header)))
-    for r, row in enumerate(rows[1:], start=2):
-        if len(row) != len(header):
-            raise DataError(f"{path}: row {r}: {len(row)} cells, the header has {len(header)}")
-        for c, cell in enumerate(row):
-            try:
-                data[r - 2, c] = float(cell)
-            except ValueError:
-                raise DataError(f"{path}: row {r}, column {header[c]!r}: not a number: {cell!r}") from None
-    return {h: data[:, i] for i, h in enumerate(header)}
-
-
-def _read_npz_columns(path: Path) -> dict:
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            cols = {k: np.asarray(z[k], dtype=float) for k in z.files}
-    except (OSError, ValueError) as exc:
-        raise DataError(f"{path}: cannot read npz: {exc}") from None
-    if not cols:
-        raise DataError(f"{path}: file is empty")
+def _renamed(cols: dict, rename: dict, path) -> dict:
+    """Columns after ``rename``; a rename onto a name another column has (or gets) is an error."""
+    out = {}
+    origin = {}
     for k, v in cols.items():
-        if v.ndim != 1:
-            raise DataError(f"{path}: array {k!r} must be 1-D, got shape {v.shape}")
-    sizes = {v.size for v in cols.values()}
-    if len(sizes) > 1:
-        raise DataError(f"{path}: arrays have different lengths {sorted(sizes)}")
-    return cols
+        new = rename.get(k, k)
+        if not isinstance(new, str) or not new:
+            raise DataError(f"{path}: rename of column {k!r} must give a non-empty name, got {new!r}")
+        if new in out:
+            first, second = sorted((origin[new], k), key=lambda c: c in rename)
+            raise DataError(f"{path}: rename {second!r} -> {new!r} collides with the column {first!r} of the file "
+                            f"(which is {'also renamed to' if first in rename else 'already'} {new!r}); "
+                            "drop or rename one of them")  # fmt: skip
+        out[new] = v
+        origin[new] = k
+    return out
 
 
 def load_case(path, inputs=None, outputs=None, extras=None, group="default", rename=None, units=None,
@@ -141,18 +103,18 @@ def load_case(path, inputs=None, outputs=None, extras=None, group="default", ren
     model : reachconf.Model, optional
         Supplies ``inputs`` and ``outputs``.
     """
-    path = Path(path)
+    path = _path_argument(path, "load_case: path")
     if not path.is_file():
         raise DataError(f"{path}: no such file")
     suffix = path.suffix.lower()
+    rows = None  # file line of each sample (CSV)
     if suffix == ".csv":
-        cols = _read_csv_columns(path)
+        cols, rows = read_csv_columns(path)
     elif suffix == ".npz":
-        cols = _read_npz_columns(path)
+        cols = read_npz_columns(path)
     else:
         raise DataError(f"{path}: unsupported file type {suffix!r} (use .csv or .npz)")
-    rename = dict(rename or {})
-    cols = {rename.get(k, k): v for k, v in cols.items()}
+    cols = _renamed(cols, dict(rename or {}), path)
     if "t" not in cols:
         raise DataError(f"{path}: missing column 't' (time in seconds); columns: {list(cols)}")
     for name, unit in dict(units or {}).items():
@@ -171,6 +133,9 @@ def load_case(path, inputs=None, outputs=None, extras=None, group="default", ren
     inputs = list(inputs or [])
     outputs = list(outputs)
     wanted = ["t", *inputs, *outputs, *extras]
+    twice = sorted({k for k in wanted if wanted.count(k) > 1})
+    if twice:
+        raise DataError(f"{path}: columns {twice} have more than one role (time t, input, output, extra)")
     missing = [k for k in wanted if k not in cols]
     if missing:
         raise DataError(f"{path}: missing columns {missing}; the file has {list(cols)}")
@@ -181,11 +146,12 @@ def load_case(path, inputs=None, outputs=None, extras=None, group="default", ren
     where = str(path)
     U = np.column_stack([cols[k] for k in inputs]) if inputs else np.zeros((K, 0))
     Y = np.column_stack([cols[k] for k in outputs]) if outputs else np.zeros((K, 0))
-    t, U, Y = check_signals(where, cols["t"], U, Y, inputs, outputs, first_row=2 if suffix == ".csv" else 1)
+    t, U, Y = check_signals(where, cols["t"], U, Y, inputs, outputs, row_numbers=rows)
     for k in extras:
         bad = ~np.isfinite(cols[k])
         if bad.any():
-            raise DataError(f"{path}: row {int(np.argmax(bad)) + 2}, column {k!r}: NaN/inf not allowed")
+            i = int(np.argmax(bad))
+            raise DataError(f"{path}: row {i + 1 if rows is None else rows[i]}, column {k!r}: NaN/inf not allowed")
     return TestCase(path.stem, group, t, U, Y, tuple(inputs), tuple(outputs), {k: cols[k] for k in extras})
 
 
@@ -194,11 +160,15 @@ def load_suite(path, model=None) -> TestSuite:
 
     Raises :class:`reachconf.DataError` on the first bad file, naming it; nothing is half-loaded.
     """
-    folder = Path(path)
+    folder = _path_argument(path, "load_suite: path")
     if not folder.is_dir():
         raise DataError(f"{folder}: test suite folder does not exist")
-    cfg = _read_toml(folder)
-    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in (".csv", ".npz") and not p.name.startswith("."))
+    cfg = read_suite_toml(folder)
+    try:
+        files = sorted(p for p in folder.iterdir()
+                       if p.suffix.lower() in (".csv", ".npz") and not p.name.startswith(".") and p.is_file())  # fmt: skip
+    except OSError as exc:
+        raise DataError(f"{folder}: cannot list the folder: {exc.strerror or exc}") from None
     if not files:
         raise DataError(f"{folder}: no .csv or .npz test case files")
     groups = cfg.get("groups", {})
