@@ -17,6 +17,7 @@ __all__ = [
     "SolverError",
     "OptionsError",
     "SetArgumentError",
+    "OutputError",
 ]
 
 
@@ -73,4 +74,12 @@ class SetArgumentError(SetError, OptionsError):
 
     Both a :class:`SetError` and an :class:`OptionsError`: the set is bad, and
     so is the argument.
+    """
+
+
+class OutputError(ReachconfError, OSError):
+    """An output file or folder cannot be written (not writable, a file where a folder is expected, locked).
+
+    Also an :class:`OSError`, so ``except OSError`` around file writing keeps
+    working; the message names the path the user gave, never a temporary file.
     """

@@ -26,15 +26,19 @@ from typing import ClassVar
 
 import numpy as np
 
+from reachconf.checks import check_field_types
 from reachconf.errors import OptionsError
 from reachconf.registry import NamedTypes
 from reachconf.sets.reduction import ReductionMethod, reduction_method
 
 __all__ = ["ReachOptions", "ReachAlgorithm", "ConservativeLinearization", "ConservativePolynomialization",
-           "ALGORITHM_TYPES", "reach_algorithm", "register_algorithm", "SPLIT_METHODS"]  # fmt: skip
+           "ALGORITHM_TYPES", "reach_algorithm", "register_algorithm", "SPLIT_METHODS", "MAX_ORDER"]  # fmt: skip
 
 #: how a set is split when its abstraction error cannot be bounded
 SPLIT_METHODS = ("generator", "box")
+#: largest zonotope order accepted (the reach stores ``order * n`` generators per step: 1000 at n = 6 is
+#: 48 kB per set; CORA's examples use 10-200)
+MAX_ORDER = 1000
 
 
 class ReachAlgorithm:
@@ -140,12 +144,14 @@ class ReachOptions:
     taylor_terms : int, default 4
         Taylor terms of the matrix exponential (``r``); the remainder is bounded.
     zonotope_order : float, default 20
-        Order (generators / dimension) the reachable sets are reduced to.
+        Order (generators / dimension) the reachable sets are reduced to;
+        at most :data:`MAX_ORDER` (1000).
     intermediate_order : float, default 20
         Order of intermediate sets (time-interval set before the error loop,
-        error sets).
+        error sets); at most 1000.
     error_order : float, default 5
-        Order the set is reduced to before ``quad_map`` (tensor order 3).
+        Order the set is reduced to before ``quad_map`` (tensor order 3); at
+        most 1000.
     tensor_order : int or None, default None
         2 (interval Hessian) or 3 (Hessian at the point + interval third-order
         tensor).  ``None``: 2 for "lin", 3 for "poly".
@@ -186,6 +192,7 @@ class ReachOptions:
     progress: bool | None = None
 
     def __post_init__(self):
+        check_field_types(self)
         alg = reach_algorithm(self.algorithm)
         if self.time_step is not None and not (math.isfinite(self.time_step) and self.time_step > 0):
             raise OptionsError(f"ReachOptions.time_step must be a positive number, got {self.time_step!r}")
@@ -193,8 +200,8 @@ class ReachOptions:
             raise OptionsError(f"ReachOptions.taylor_terms must be an integer in 1..20, got {self.taylor_terms!r}")
         for name in ("zonotope_order", "intermediate_order", "error_order"):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float, np.number)) and value >= 1 and math.isfinite(value)):
-                raise OptionsError(f"ReachOptions.{name} must be a number >= 1, got {value!r}")
+            if not (isinstance(value, (int, float, np.number)) and 1 <= value <= MAX_ORDER):
+                raise OptionsError(f"ReachOptions.{name} must be a number in [1, {MAX_ORDER}], got {value!r}")
         to = self.effective_tensor_order
         if to not in (2, 3):
             raise OptionsError(f"ReachOptions.tensor_order must be 2 or 3, got {self.tensor_order!r}")

@@ -26,12 +26,14 @@ Example::
 from __future__ import annotations
 
 import dataclasses
+import os
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from reachconf.checks import check_workers
 from reachconf.conformance.synthesis import SynthesisOptions
 from reachconf.conformance.trace import TraceOptions
 from reachconf.diagnose.effects import EFFECTS
@@ -73,19 +75,31 @@ class RunSpec:
 def resolve_model(name: str, params=None, where="model"):
     """A built-in model by name or ``module:attribute`` (see :func:`reachconf.models.get_model`)."""
     if not isinstance(name, str) or not name:
-        raise DataError(f"{where}: model must be a non-empty string")
+        raise DataError(f"{where}: model must be a non-empty string, got {name!r}")
+    if params is not None and not isinstance(params, dict):
+        raise DataError(f"{where}: [params] must be a table of parameter values, got {params!r}")
+    for key, value in (params or {}).items():
+        if not _is_number(value):
+            raise DataError(f"{where}: [params] {key} must be a number, got {value!r}")
     try:
         model = get_model(name)
+        if not isinstance(model, Model):
+            raise DataError(f"{where}: {name!r} is not a reachconf.Model")
+        if params:
+            model = model.with_params(**params)
     except ReachconfError as exc:
         raise DataError(f"{where}: {exc}") from None
-    if not isinstance(model, Model):
-        raise DataError(f"{where}: {name!r} is not a reachconf.Model")
-    if params:
-        model = model.with_params(**params)
     return model
 
 
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
 def _interval(value, dim, where) -> Interval:
+    ok = isinstance(value, list) and all(isinstance(p, list) and all(_is_number(v) for v in p) for p in value)
+    if not ok:
+        raise DataError(f"{where}: must be a list of [lo, hi] pairs of numbers, got {value!r}"[:300])
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
@@ -100,7 +114,15 @@ def _interval(value, dim, where) -> Interval:
         raise DataError(f"{where}: {exc}") from None
 
 
+def _table(raw, key, where):
+    value = raw.get(key, {})
+    if not isinstance(value, dict):
+        raise DataError(f"{where}: [{key}] must be a table, got {value!r}"[:300])
+    return dict(value)
+
+
 def _options(cls, table, where, drop=()):
+    """``cls(**table)``; every error names the run file, the table and the key."""
     table = {k: v for k, v in dict(table or {}).items() if k not in drop}
     fields = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(table) - fields)
@@ -108,19 +130,23 @@ def _options(cls, table, where, drop=()):
         raise DataError(f"{where}: unknown options {unknown}; allowed: {sorted(fields)}")
     try:
         return cls(**table)
-    except (TypeError, ValueError) as exc:
-        raise DataError(f"{where}: {exc}") from None
+    except (TypeError, ValueError) as exc:  # OptionsError is a ValueError: "ReachOptions.time_step must be ..."
+        raise DataError(f"{where} {str(exc).replace(cls.__name__ + '.', '')}") from None
 
 
 def load_run(path) -> RunSpec:
     """Parse and validate a run file (every error names the file and key)."""
+    if not isinstance(path, (str, os.PathLike)) or not str(path):
+        raise DataError(f"load_run: path must be a run-file path (str or pathlib.Path), got {path!r}")
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: run file does not exist")
     try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+        raw = tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise DataError(f"{path}: invalid TOML: {exc}") from None
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read the run file: {exc.strerror or exc}") from None
     unknown = sorted(set(raw) - _KEYS)
     if unknown:
         raise DataError(f"{path}: unknown keys {unknown}; allowed: {sorted(_KEYS)}")
@@ -129,33 +155,41 @@ def load_run(path) -> RunSpec:
     model = resolve_model(raw["model"], raw.get("params"), where=f"{path}: model")
     if "suite" not in raw:
         raise DataError(f"{path}: missing key 'suite' (folder of test cases)")
+    if not isinstance(raw["suite"], str) or not raw["suite"]:
+        raise DataError(f"{path}: suite must be a folder name (a string), got {raw['suite']!r}")
+    if not isinstance(raw.get("description", ""), str):
+        raise DataError(f"{path}: description must be a string")
     suite_path = (path.parent / raw["suite"]).resolve()
-    sets = raw.get("sets", {})
+    sets = _table(raw, "sets", str(path))
     unknown = sorted(set(sets) - {"W", "V", "X0"})
     if unknown:
         raise DataError(f"{path}: [sets] unknown sets {unknown}; allowed: W, V, X0")
     W = _interval(sets["W"], model.q, f"{path}: sets.W") if "W" in sets else None
     V = _interval(sets["V"], model.p, f"{path}: sets.V") if "V" in sets else None
     X0 = _interval(sets["X0"], model.n, f"{path}: sets.X0") if "X0" in sets else None
-    reach_opts = _options(ReachOptions, raw.get("reach"), f"{path}: [reach]")
-    trace_tab = dict(raw.get("trace", {}))
+    reach_opts = _options(ReachOptions, _table(raw, "reach", str(path)), f"{path}: [reach]")
+    trace_tab = _table(raw, "trace", str(path))
     method = trace_tab.get("method", "perstep")
-    if method not in ("perstep", "optctrl"):
+    if not isinstance(method, str) or method not in ("perstep", "optctrl"):
         raise DataError(f"{path}: trace.method must be 'perstep' or 'optctrl', got {method!r}")
     trace_opts = _options(TraceOptions, trace_tab, f"{path}: [trace]", drop=("method",))
-    synth_tab = dict(raw.get("synthesis", {}))
+    synth_tab = _table(raw, "synthesis", str(path))
     if {"reach", "trace"} & set(synth_tab):
         raise DataError(f"{path}: [synthesis] cannot hold 'reach'/'trace': use the [reach] and [trace] tables")
     synth_opts = _options(SynthesisOptions, synth_tab, f"{path}: [synthesis]")
     synth_opts = dataclasses.replace(synth_opts, reach=reach_opts, trace=trace_opts)
-    workers = raw.get("workers")
+    try:
+        workers = check_workers(raw.get("workers"))
+    except ReachconfError as exc:
+        raise DataError(f"{path}: {exc}") from None
+    _table(raw, "diagnose", str(path))
     return RunSpec(path, model, suite_path, W, V, X0, reach_opts, method, trace_opts, synth_opts, workers, raw)
 
 
 def diagnose_settings(spec: RunSpec) -> dict:
     """Keyword arguments of :func:`reachconf.diagnose` from the run file's ``[diagnose]`` table."""
     where = f"{spec.path}: [diagnose]"
-    table = dict(spec.raw.get("diagnose", {}))
+    table = _table(spec.raw, "diagnose", str(spec.path))
     kwargs = {}
     effects = table.pop("effects", "all")
     if isinstance(effects, list):

@@ -13,9 +13,13 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from tqdm.auto import tqdm
 
+from reachconf.checks import check_workers
 from reachconf.errors import OptionsError, ReachconfError
 
-__all__ = ["run_cases", "process_pool", "Interrupted"]
+__all__ = ["run_cases", "process_pool", "Interrupted", "check_scheduler", "DASK_SCHEMES"]
+
+#: address schemes of a Dask scheduler
+DASK_SCHEMES = ("tcp", "tls", "inproc", "ucx", "ws", "wss")
 
 
 class Interrupted(ReachconfError, KeyboardInterrupt):
@@ -73,8 +77,7 @@ def run_cases(fn, jobs, workers=None, scheduler=None, desc="cases", progress=Non
         ``REACHCONF_PROGRESS`` is not ``0``).
     """
     jobs = list(jobs)
-    if workers is not None and (int(workers) != workers or workers < 1):
-        raise OptionsError(f"workers must be a positive integer, got {workers!r}")
+    workers = check_workers(workers)
     results = [None] * len(jobs)
     bar = _progress(len(jobs), desc, None if progress is None else not progress)
     try:
@@ -114,7 +117,7 @@ def _run_dask(fn, jobs, scheduler, results, bar):
     except ImportError:
         raise OptionsError("scheduler= needs Dask: pip install 'reachconf[dask]'") from None
     own = not isinstance(scheduler, Client)
-    client = Client(scheduler) if own else scheduler
+    client = _connect(Client, check_scheduler(scheduler)) if own else scheduler
     try:
         futures = client.map(fn, jobs, pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
@@ -124,3 +127,85 @@ def _run_dask(fn, jobs, scheduler, results, bar):
     finally:
         if own:
             client.close()
+
+
+def _connect(Client, scheduler):
+    """``Client(scheduler)`` with a deadline: a server that accepts but never answers made it wait forever."""
+    import threading
+
+    import dask
+    from dask.utils import parse_timedelta
+
+    timeout = parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"), default="s")
+    box = {}
+
+    def connect():
+        try:
+            box["client"] = Client(scheduler, timeout=timeout)
+        except BaseException as exc:  # noqa: BLE001 - reported below
+            box["error"] = exc
+
+    thread = threading.Thread(target=connect, daemon=True, name="reachconf-dask-connect")
+    thread.start()
+    thread.join(2 * timeout)
+    if thread.is_alive():
+        raise OptionsError(f"scheduler {scheduler!r}: cannot connect to the Dask scheduler: no answer within "
+                           f"{2 * timeout:g} s (something accepts connections there, but not as a Dask scheduler?)")
+    if "error" in box:
+        exc = box["error"]
+        raise OptionsError(f"scheduler {scheduler!r}: cannot connect to the Dask scheduler: "
+                           f"{exc or type(exc).__name__}") from None  # fmt: skip
+    return box["client"]
+
+
+def check_scheduler(scheduler, timeout: float = 5.0, probe: bool = True):
+    """Check a Dask scheduler address before any work: its form, and (``probe``) that something listens there.
+
+    Parameters
+    ----------
+    scheduler : str or dask.distributed.Client or None
+        ``"tcp://host:port"`` (or another scheme of :data:`DASK_SCHEMES`).
+    timeout : float
+        Seconds to wait for the TCP connection of the probe.
+    probe : bool
+        Open (and close) a TCP connection to ``host:port`` (tcp, tls, ws, wss).
+
+    Raises
+    ------
+    OptionsError
+        Naming the address and what happened: malformed, unknown scheme, no
+        port, host not found, connection refused, no answer within ``timeout``.
+    """
+    import socket
+    from urllib.parse import urlsplit
+
+    if scheduler is None or not isinstance(scheduler, str):
+        if scheduler is not None and type(scheduler).__name__ != "Client":
+            raise OptionsError(f"scheduler must be an address 'tcp://host:port' or a dask Client, got {scheduler!r}")
+        return scheduler
+    where = f"scheduler {scheduler!r}"
+    if "://" not in scheduler:
+        raise OptionsError(f"{where}: expected an address like 'tcp://host:8786'")
+    parts = urlsplit(scheduler)
+    if parts.scheme not in DASK_SCHEMES:
+        raise OptionsError(f"{where}: unknown scheme {parts.scheme!r}; use one of {', '.join(DASK_SCHEMES)}")
+    if parts.scheme in ("inproc", "ucx"):
+        return scheduler
+    try:
+        host, port = parts.hostname, parts.port
+    except ValueError as exc:  # port out of range or not a number
+        raise OptionsError(f"{where}: bad port ({exc})") from None
+    if not host or port is None:
+        raise OptionsError(f"{where}: expected host and port, like 'tcp://host:8786'")
+    if probe:
+        try:
+            socket.create_connection((host, port), timeout=timeout).close()
+        except socket.gaierror as exc:
+            raise OptionsError(f"{where}: host {host!r} not found ({exc.strerror or exc})") from None
+        except (TimeoutError, socket.timeout):
+            raise OptionsError(f"{where}: no answer from {host}:{port} within {timeout:g} s "
+                               "(is the scheduler running, and is the address right?)") from None  # fmt: skip
+        except OSError as exc:
+            raise OptionsError(f"{where}: cannot connect to {host}:{port}: {exc.strerror or exc} "
+                               "(is a Dask scheduler running there?)") from None  # fmt: skip
+    return scheduler

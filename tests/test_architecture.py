@@ -17,7 +17,9 @@ MAX_LINES = 500
 
 #: layers from the bottom up; a module may import its own layer and those below
 LAYERS = (
-    ("kernels, errors, registries", ("reachconf_kernels", "reachconf.errors", "reachconf.registry")),
+    ("kernels, errors, registries, argument checks, verdicts", ("reachconf_kernels", "reachconf.errors",
+                                                                "reachconf.registry", "reachconf.checks",
+                                                                "reachconf.verdict")),
     ("sets, test suites, process pools", ("reachconf.sets", "reachconf.io", "reachconf.runner")),
     ("model, drawing", ("reachconf.model", "reachconf.plot")),
     ("reachability, built-in models", ("reachconf.reach", "reachconf.reach_options", "reachconf.tube", "reachconf.models")),

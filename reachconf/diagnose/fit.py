@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from reachconf.checks import check_field_types
 from reachconf.diagnose.effects import effect_param_name
 from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.cases import TestCase, case_arrays
@@ -82,6 +83,7 @@ class DiagnoseOptions:
     tube_horizon: float = 2.0
 
     def __post_init__(self):
+        check_field_types(self)
         for name in ("window", "stride", "prior", "param_bounds", "box_rate", "box_segment"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):

@@ -44,7 +44,7 @@ import sympy as sp
 from reachconf.errors import ModelError
 from reachconf.model.codegen import compile_model
 
-__all__ = ["Model", "Symbols"]
+__all__ = ["Model", "Symbols", "require_model"]
 
 
 class Symbols:
@@ -427,3 +427,10 @@ def _vector(value, size: int, name: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         raise ModelError(f"{name} contains NaN or inf")
     return arr
+
+
+def require_model(model, where: str) -> "Model":
+    """``model`` if it is a :class:`Model`, else :class:`ModelError` naming ``where`` (e.g. ``"synthesize_W"``)."""
+    if not isinstance(model, Model):
+        raise ModelError(f"{where}: model must be a reachconf Model, got {type(model).__name__}")
+    return model

@@ -50,20 +50,43 @@ def get_model(name: str, **params):
 
     Keyword arguments are passed to the model factory (parameters, options).
     """
+    if not isinstance(name, str) or not name:
+        raise ModelError(f"model name must be a non-empty string, got {name!r}")
     if ":" in name:
-        module_name, attr = name.split(":", 1)
-        try:
-            obj = getattr(importlib.import_module(module_name), attr)
-        except (ImportError, AttributeError) as exc:
-            raise ModelError(f"cannot load model {name!r}: {exc}") from None
-        model = obj(**params) if callable(obj) and not hasattr(obj, "f_expr") else obj
-        if params and hasattr(obj, "f_expr"):
-            model = obj.with_params(**params)
-        return model
+        return _user_model(name, params)
     if name not in _REGISTRY:
         raise ModelError(f"unknown model {name!r}; built-in models: {', '.join(available())}")
     factory = getattr(importlib.import_module(_REGISTRY[name]), name)
     return factory(**params)
+
+
+def _user_model(name: str, params: dict):
+    """``"module:attribute"``: a Model, or a function returning one (called with ``params``)."""
+    from reachconf.model.core import Model
+
+    module_name, attr = name.split(":", 1)
+    if not module_name or not attr:
+        raise ModelError(f"model {name!r}: expected 'package.module:attribute'")
+    try:
+        module = importlib.import_module(module_name)
+    except Exception as exc:  # ImportError, or whatever the user's module raises while it is imported
+        raise ModelError(f"cannot load model {name!r}: importing {module_name!r} failed: "
+                         f"{type(exc).__name__}: {exc}") from None  # fmt: skip
+    try:
+        obj = getattr(module, attr)
+    except AttributeError:
+        raise ModelError(f"cannot load model {name!r}: module {module_name!r} has no attribute {attr!r}") from None
+    if isinstance(obj, Model):
+        return obj.with_params(**params) if params else obj
+    if not callable(obj):
+        raise ModelError(f"model {name!r} is a {type(obj).__name__}, not a reachconf Model or a function returning one")
+    try:
+        model = obj(**params)
+    except Exception as exc:  # a function that is not a model factory (e.g. "os.path:join")
+        raise ModelError(f"model {name!r}: calling it to get the model failed: {type(exc).__name__}: {exc}") from None
+    if not isinstance(model, Model):
+        raise ModelError(f"model {name!r} returned a {type(model).__name__}, not a reachconf Model")
+    return model
 
 
 def __getattr__(name):
