@@ -14,7 +14,6 @@ the measured traces.
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from importlib import resources
@@ -29,6 +28,7 @@ from reachconf.datasets.vehicle_campaign.maneuvers import lane_change
 from reachconf.io.atomic import atomic_write
 from reachconf.io.cases import TestCase, TestSuite
 from reachconf.io.files import save_suite
+from reachconf.io.jsonfile import json_text
 from reachconf.model.simulate import simulate
 from reachconf.models import get_model
 from reachconf.plot import save_figure
@@ -134,7 +134,7 @@ def run_demo(out, workers=None, log=print) -> dict:
     plt.close(fig)
     summary["timings"]["tube"] = time.perf_counter() - t0
     summary["timings"]["total"] = time.perf_counter() - t_all
-    atomic_write(out / "summary.json", json.dumps(summary, indent=2, default=float))
+    atomic_write(out / "summary.json", json_text(summary))
     log(f"demo done in {summary['timings']['total']:.1f} s: {png}, {out / 'synthesis.json'}, {out / 'summary.json'}")
     return summary
 

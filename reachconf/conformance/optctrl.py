@@ -34,7 +34,10 @@ from reachconf.model.simulate import simulate
 from reachconf_kernels.integrate import rk4_one_step_each
 from reachconf_kernels.tracefit import discrete_linearization
 
-__all__ = ["optctrl_trace", "box_scp", "fine_grid"]
+__all__ = ["optctrl_trace", "box_scp", "fine_grid", "NO_TRACE"]
+
+#: in the message of :func:`optctrl_trace` when its QP failed (the trace verdict is then undecided)
+NO_TRACE = "no disturbance trace found"
 
 
 def fine_grid(t, U, r):
@@ -168,7 +171,7 @@ def optctrl_trace(model, t, U, Y, W_lo, W_hi, V_lo, V_hi, options, case, start=N
             cp.multiply(np.tile(1.0 / sx, J + 1), dx))  # fmt: skip
         status = _solve(cp.Problem(cp.Minimize(objective), cons), options.solver)
         if status not in ("optimal", "optimal_inaccurate"):
-            message = f"Alg. 2: the linearised QP is {status} in iteration {it + 1}: no disturbance trace found"
+            message = f"Alg. 2: the linearised QP is {status} in iteration {it + 1}: {NO_TRACE}"
             break
         DX = np.asarray(dx.value).reshape(J + 1, n)
         X_tilde = X + DX

@@ -13,10 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from reachconf.checks import check_options, check_workers
 from reachconf.conformance.synthesis import SynthesisOptions, reachset_check
 from reachconf.conformance.trace import trace_conformance
 from reachconf.errors import ConformanceError, OptionsError
+from reachconf.io.cases import suite_cases
 from reachconf.io.results import JsonResult
+from reachconf.model.core import require_model
 from reachconf.runner import run_cases
 from reachconf.sets.convert import as_box
 from reachconf.sets.core import Interval
@@ -121,14 +124,16 @@ def pareto_front(model, suite, V, W_start, check: str = "reachset", iterations: 
     ParetoFront
         The non-dominated boxes found (each verified conformant).
     """
-    options = options or SynthesisOptions()
+    require_model(model, "pareto_front")
+    options = check_options(options, SynthesisOptions, "pareto_front")
+    workers = check_workers(workers, "pareto_front: workers")
     if check not in ("reachset", "trace"):
         raise OptionsError(f"check must be 'reachset' or 'trace', got {check!r}")
     Vb = as_box(V, model.p, "V")
     Vbox = Interval(Vb.lo, Vb.hi)
     Wb = as_box(W_start, model.q, "W_start")
     W_start = Interval(Wb.lo, Wb.hi)
-    cases = list(suite)
+    cases = suite_cases(suite, "pareto_front")
     q = model.q
     job_fn = _reachset_job if check == "reachset" else _trace_job
 

@@ -8,10 +8,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linprog
 
+from reachconf.checks import check_options
 from reachconf.errors import ConformanceError, ReachError
 from reachconf.io.cases import case_arrays
 from reachconf.io.results import JsonResult
 from reachconf.plot import plot_measured
+from reachconf.model.core import require_model
 from reachconf.model.outputs import affine_output, output_enclosure, output_index_of_states, state_estimate
 from reachconf.reach import ReachStopped, reach_run
 from reachconf.reach_options import ReachOptions
@@ -19,6 +21,7 @@ from reachconf.sets.containment import contains_points_lp
 from reachconf.sets.convert import as_box
 from reachconf.sets.core import Interval, Zonotope
 from reachconf.tube import ReachTube
+from reachconf.verdict import Verdict
 from reachconf_kernels.containment import contains_mapped_sequence
 from reachconf_kernels.zonotope import from_interval
 
@@ -34,12 +37,15 @@ class ReachsetResult(JsonResult):
     case : str
     conformant : bool
         Every measurement lies in ``h(R(t_i)) ⊕ V``; False also when the
-        reachability analysis failed (see ``message``).
+        reachability analysis failed (then ``verdict`` is undecided).
     first_violation_time : float or None
+        First sample outside its set; when undecided, the time the reach
+        failed.
     max_violation : float
         Largest infinity-norm distance of a measurement from its set
         ``h(R(t_i)) ⊕ V`` (0 when conformant, ``inf`` when the reach failed,
-        NaN when not computed: ``violation_distance=False``).
+        NaN when not computed: ``violation_distance=False``; ``null`` in JSON
+        for both).
     inside : ndarray of bool (K,)
         Measurement inside its set (False also for samples not checked after
         a stop at the first violation).
@@ -55,6 +61,10 @@ class ReachsetResult(JsonResult):
     Y : ndarray (K, p) or None
         The measurements.
     output_names : tuple of str
+    verdict : Verdict
+        ``CONFORMANT``, ``NOT_CONFORMANT`` (a measurement lies outside its
+        set: the reachable set is an over-approximation, so this is
+        certain), or ``UNDECIDED`` (the reach failed; ``message`` says why).
     """
 
     case: str
@@ -69,10 +79,16 @@ class ReachsetResult(JsonResult):
     t: np.ndarray | None = None
     Y: np.ndarray | None = None
     output_names: tuple = ()
+    verdict: Verdict | None = None
+
+    def __post_init__(self):
+        self.verdict = Verdict.of(self.conformant) if self.verdict is None else Verdict(self.verdict)
+        if self.conformant and self.verdict is not Verdict.CONFORMANT:
+            raise ConformanceError(f"case {self.case!r}: conformant=True with verdict {self.verdict.value}")
 
     def to_dict(self) -> dict:
-        """Verdict, violations and measurements (the tube is not included)."""
-        return {"case": self.case, "conformant": bool(self.conformant),
+        """Verdict, violations and measurements (the tube is not included; ``max_violation`` None if not finite)."""
+        return {"case": self.case, "verdict": self.verdict.value, "conformant": self.verdict.json_conformant,
                 "first_violation_time": self.first_violation_time, "max_violation": float(self.max_violation),
                 "inside": np.asarray(self.inside, bool).tolist(), "seconds": float(self.seconds),
                 "message": self.message, "violations": {repr(k): float(v) for k, v in self.violations.items()},
@@ -84,10 +100,13 @@ class ReachsetResult(JsonResult):
     def from_dict(cls, d: dict) -> "ReachsetResult":
         """The result from :meth:`to_dict` (without a tube)."""
         arr = (lambda v: None if v is None else np.asarray(v, dtype=float))  # noqa: E731
-        return cls(d["case"], bool(d["conformant"]), d["first_violation_time"], float(d["max_violation"]),
+        verdict = Verdict(d.get("verdict", Verdict.of(bool(d["conformant"]))))
+        worst = d["max_violation"]
+        worst = (np.inf if verdict is Verdict.UNDECIDED else np.nan) if worst is None else float(worst)
+        return cls(d["case"], verdict is Verdict.CONFORMANT, d["first_violation_time"], worst,
                    np.asarray(d["inside"], dtype=bool), None, float(d["seconds"]), d["message"],
                    {float(k): float(v) for k, v in d["violations"].items()}, arr(d.get("t")), arr(d.get("Y")),
-                   tuple(d.get("output_names", ())))  # fmt: skip
+                   tuple(d.get("output_names", ())), verdict)  # fmt: skip
 
     def plot(self, ax=None, dims=None, **style):
         """The reach tube (if kept) with the measurements; measurements outside their sets in red.
@@ -123,7 +142,7 @@ class ReachsetResult(JsonResult):
                 plot_measured(ax, [xy[~inside]], dims, label="outside its set", color="C3", ms=4)
             ax.set_xlabel(dims[0])
             ax.set_ylabel(dims[1])
-        ax.set_title(f"{self.case}: {'conformant' if self.conformant else 'not conformant'}", fontsize=9)
+        ax.set_title(f"{self.case}: {self.verdict.label}", fontsize=9)
         return ax
 
 
@@ -197,18 +216,20 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
     Returns
     -------
     ReachsetResult
-        A reach that fails (the set explodes) gives ``conformant=False`` with
-        the reason in ``message``: a failed reach never counts as conformant.
+        A reach that fails (the set explodes) gives ``verdict=UNDECIDED``
+        (``conformant=False``) with the reason in ``message``: a failed reach
+        never counts as conformant, nor as a violation.
         With an affine output map and a box ``V`` the measurements are checked
         along the reach by one compiled kernel (the same certified test as
         :meth:`Zonotope.contains`); otherwise set by set.
     """
     t0 = time.perf_counter()
+    require_model(model, "reachset_conformance")
+    options = check_options(options, ReachOptions, "reachset_conformance")
     t, U, Y = case_arrays(model, case)
     name = getattr(case, "name", "case")
     if X0 is None:
         X0 = initial_set(model, case, V)
-    options = options or ReachOptions()
     Vb = as_box(V, model.p, "V")
     V_lo, V_hi = Vb.lo, Vb.hi
     Vset = Interval(V_lo, V_hi)
@@ -225,7 +246,8 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
                          monitor=checker)  # fmt: skip
     except ReachError as exc:
         return ReachsetResult(name, False, float(t[0] + (exc.time or 0.0)), float("inf"), np.zeros(t.size, bool),
-                              None, time.perf_counter() - t0, str(exc), {}, t, Y, model.output_names)  # fmt: skip
+                              None, time.perf_counter() - t0, str(exc), {}, t, Y, model.output_names,
+                              Verdict.UNDECIDED)  # fmt: skip
     except ReachStopped:
         inside = checker.status == 1
         first = int(np.nonzero(checker.status == 0)[0][0])

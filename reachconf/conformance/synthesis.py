@@ -21,15 +21,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from reachconf.checks import check_field_types, check_options, check_workers
+from reachconf.conformance.alpha import alpha_search
 from reachconf.conformance.bounds import minimize_box
 from reachconf.conformance.reachset import reachset_conformance
 from reachconf.conformance.trace import TraceOptions, trace_disturbances
 from reachconf.errors import OptionsError
+from reachconf.io.cases import suite_cases
 from reachconf.io.results import JsonResult
+from reachconf.model.core import require_model
 from reachconf.reach_options import ReachOptions
 from reachconf.runner import process_pool, run_cases
 from reachconf.sets.convert import as_box
 from reachconf.sets.core import Interval
+from reachconf.verdict import Verdict, overall_verdict
 
 __all__ = ["SynthesisOptions", "CaseSynthesis", "SynthesisResult", "synthesize_W", "alpha_search",
            "reachset_check"]  # fmt: skip
@@ -85,6 +90,7 @@ class SynthesisOptions:
     trace: TraceOptions | None = None
 
     def __post_init__(self):
+        check_field_types(self)
         if int(self.alpha_iterations) != self.alpha_iterations or self.alpha_iterations < 1:
             raise OptionsError(f"alpha_iterations must be a positive integer, got {self.alpha_iterations!r}")
         mi = self.merge_iterations
@@ -117,6 +123,11 @@ class CaseSynthesis:
         ``W_opt`` is trace conformant.
     message : str
     alpha_trials : list of (alpha, conformant)
+    verdict : Verdict
+        Of ``W_RC``: ``CONFORMANT`` (verified by reachability),
+        ``NOT_CONFORMANT`` (at the largest α tried a measurement lies outside
+        its reachable set) or ``UNDECIDED`` (the reach failed at the largest α
+        tried; ``message`` says why).
     """
 
     name: str
@@ -131,11 +142,16 @@ class CaseSynthesis:
     trace_conformant: bool = False
     message: str = ""
     alpha_trials: list = field(default_factory=list)
+    verdict: Verdict | None = None
+
+    def __post_init__(self):
+        self.verdict = Verdict.of(self.conformant) if self.verdict is None else Verdict(self.verdict)
 
     def to_dict(self):
         """The case result as JSON values."""
         return {"name": self.name, "group": self.group, "W_TC": self.W_TC.to_list(), "W_opt": self.W_opt.to_list(),
-                "W_RC": self.W_RC.to_list(), "alpha": self.alpha, "conformant": self.conformant,
+                "W_RC": self.W_RC.to_list(), "alpha": self.alpha, "verdict": self.verdict.value,
+                "conformant": self.verdict.json_conformant,
                 "trace_conformant": self.trace_conformant, "seconds": self.seconds,
                 "step_seconds": self.step_seconds, "message": self.message,
                 "alpha_trials": self.alpha_trials}  # fmt: skip
@@ -147,7 +163,8 @@ class CaseSynthesis:
         return cls(d["name"], d["group"], box(d["W_TC"]), box(d["W_opt"]), box(d["W_RC"]), float(d["alpha"]),
                    bool(d["conformant"]), float(d["seconds"]), dict(d.get("step_seconds", {})),
                    bool(d.get("trace_conformant", False)), d.get("message", ""),
-                   [tuple(x) if isinstance(x, list) else x for x in d.get("alpha_trials", [])])  # fmt: skip
+                   [tuple(x) if isinstance(x, list) else x for x in d.get("alpha_trials", [])],
+                   Verdict(d.get("verdict", Verdict.of(bool(d["conformant"])))))  # fmt: skip
 
 
 @dataclass
@@ -161,10 +178,14 @@ class SynthesisResult(JsonResult):
         ``W_RC,Mnvr`` per group (Table 6).
     group_alpha : dict group -> float
     group_conformant : dict group -> bool
+        ``W_RC,Mnvr`` verified conformant for every case of the group.
     V : Interval
     disturbance_names : tuple of str
     seconds : float
     group_seconds : dict group -> float
+    group_verdict : dict group -> Verdict
+        As ``group_conformant``, with ``UNDECIDED`` where the merge failed
+        because a reach failed (not because a measurement left its set).
     """
 
     cases: dict
@@ -175,16 +196,29 @@ class SynthesisResult(JsonResult):
     disturbance_names: tuple
     seconds: float
     group_seconds: dict = field(default_factory=dict)
+    group_verdict: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        for g, ok in self.group_conformant.items():
+            self.group_verdict.setdefault(g, Verdict.of(bool(ok)))
+        self.group_verdict = {g: Verdict(v) for g, v in self.group_verdict.items()}
+
+    @property
+    def verdict(self) -> Verdict:
+        """Undecided if any case or group is, else not conformant if any is, else conformant."""
+        return overall_verdict([c.verdict for c in self.cases.values()] + list(self.group_verdict.values()))
 
     def to_dict(self):
-        """The result as JSON values (boxes as ``[lo, hi]`` pairs)."""
+        """The result as JSON values (boxes as ``[lo, hi]`` pairs; ``conformant`` values None where undecided)."""
         return {
+            "verdict": self.verdict.value,
             "disturbances": list(self.disturbance_names),
             "V": self.V.to_list(),
             "cases": {k: c.to_dict() for k, c in self.cases.items()},
             "groups": {g: W.to_list() for g, W in self.groups.items()},
             "group_alpha": self.group_alpha,
-            "group_conformant": self.group_conformant,
+            "group_conformant": {g: v.json_conformant for g, v in self.group_verdict.items()},
+            "group_verdict": {g: v.value for g, v in self.group_verdict.items()},
             "group_seconds": self.group_seconds,
             "seconds": self.seconds,
         }
@@ -194,8 +228,9 @@ class SynthesisResult(JsonResult):
         """The result from :meth:`to_dict`."""
         return cls({k: CaseSynthesis.from_dict(c) for k, c in d["cases"].items()},
                    {g: Interval.from_list(W) for g, W in d["groups"].items()}, dict(d["group_alpha"]),
-                   dict(d["group_conformant"]), Interval.from_list(d["V"]), tuple(d["disturbances"]), float(d["seconds"]),
-                   dict(d.get("group_seconds", {})))  # fmt: skip
+                   {g: bool(ok) for g, ok in d["group_conformant"].items()}, Interval.from_list(d["V"]),
+                   tuple(d["disturbances"]), float(d["seconds"]), dict(d.get("group_seconds", {})),
+                   dict(d.get("group_verdict", {})))  # fmt: skip
 
     def plot(self, ax=None):
         """``W_RC,Mnvr`` per group: one axes per disturbance channel, a bar per group; returns the axes.
@@ -228,47 +263,12 @@ class SynthesisResult(JsonResult):
         rows = [head, "|" + "---|" * (len(names) + 3)]
         for g, W in self.groups.items():
             cells = [f"[{lo:.{digits}g}, {hi:.{digits}g}]" for lo, hi in zip(W.lo, W.hi)]
-            rows.append(f"| {g} | " + " | ".join(cells) + f" | {self.group_alpha[g]:.4g} | {self.group_conformant[g]} |")
+            label = self.group_verdict.get(g, Verdict.of(self.group_conformant[g])).label
+            rows.append(f"| {g} | " + " | ".join(cells) + f" | {self.group_alpha[g]:.4g} | {label} |")
         return "\n".join(rows)
 
     def __str__(self):
         return self.table()
-
-
-def _scaled(c, g, alpha) -> Interval:
-    return Interval(c - alpha * g, c + alpha * g)
-
-
-def alpha_search(check, W: Interval, iterations: int = 10, alpha_max: float = 1.0):
-    """Binary search (eq. 68) for the smallest α with ``check(c + α g)`` true.
-
-    ``check(Interval) -> bool``; ``c, g`` are the centre and radius of ``W``.
-    α = 1 is tried first; if it fails, α is doubled up to ``alpha_max`` (see
-    :class:`SynthesisOptions`).  The bisection then runs between the largest
-    failing and the smallest conformant α (``[0, 1]`` when α = 1 passes).
-    Returns ``(alpha, box, conformant, trials)``; if no α up to ``alpha_max``
-    passes, ``conformant`` is False and α is the last one tried.
-    """
-    c, g = W.center, W.radius
-    trials = []
-    lo, hi = 0.0, 1.0
-    while True:
-        ok = check(_scaled(c, g, hi))
-        trials.append((hi, bool(ok)))
-        if ok:
-            break
-        if hi >= alpha_max:
-            return hi, _scaled(c, g, hi), False, trials
-        lo, hi = hi, min(2.0 * hi, alpha_max)
-    for _ in range(iterations):
-        mid = 0.5 * (lo + hi)
-        ok = check(_scaled(c, g, mid))
-        trials.append((mid, bool(ok)))
-        if ok:
-            hi = mid
-        else:
-            lo = mid
-    return hi, _scaled(c, g, hi), True, trials
 
 
 def reachset_check(model, case, W, V, options):
@@ -290,14 +290,10 @@ def reachset_check(model, case, W, V, options):
     """
     res = reachset_conformance(model, case, W, V, options=options.reach, keep_tube=False,
                                violation_distance=False, stop_at_first_violation=True)  # fmt: skip
-    if res.message and options.reach_fallback is not None:  # the reach itself failed: try the precise one
+    if res.verdict is Verdict.UNDECIDED and options.reach_fallback is not None:  # the reach failed: the precise one
         res = reachset_conformance(model, case, W, V, options=options.reach_fallback, keep_tube=False,
                                    violation_distance=False, stop_at_first_violation=True)  # fmt: skip
     return res
-
-
-def _reach_ok(model, case, W, V, options) -> bool:
-    return reachset_check(model, case, W, V, options).conformant
 
 
 def _synth_case(job) -> CaseSynthesis:
@@ -319,12 +315,13 @@ def _synth_case(job) -> CaseSynthesis:
     steps["step2"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     message = ""
-    at_one = {}  # the check of α = 1 (W_opt itself), for the message if nothing passes
+    at_one = {}  # the check of α = 1 (W_opt itself), for the message if nothing passes; and the last check
 
     def check(W, scale_of=None):
         res = reachset_check(model, case, W, V, options)
         if scale_of is not None and np.allclose(W.lo, scale_of.lo) and np.allclose(W.hi, scale_of.hi):
             at_one.setdefault("res", res)
+        at_one["last"] = res
         return res.conformant
 
     alpha, W_RC, ok, trials = alpha_search(lambda W: check(W, W_opt), W_opt, options.alpha_iterations,
@@ -340,28 +337,35 @@ def _synth_case(job) -> CaseSynthesis:
         if ok2:
             alpha, W_RC, ok = alpha2, W2, True
             message = "W_opt was not reachset conformant; alpha scales the hull of W_TC and W_opt"
-    if not ok:
+    verdict = Verdict.CONFORMANT if ok else at_one["last"].verdict
+    if not ok and verdict is Verdict.UNDECIDED:
+        message = f"undecided: the reach failed at the largest α tried ({alpha:g}): {at_one['last'].message}"
+    elif not ok:
         res = at_one["res"]
         message = res.message or (f"not reachset conformant up to α = {options.alpha_max:g} (at α = 1 first "
                                   f"violation at t = {res.first_violation_time})")  # fmt: skip
     steps["step3"] = time.perf_counter() - t0
     return CaseSynthesis(case.name, case.group, W_TC, W_opt, W_RC, alpha, ok, time.perf_counter() - t_start, steps,
-                         trace_ok, message, trials)  # fmt: skip
+                         trace_ok, message, trials, verdict)  # fmt: skip
 
 
-def _early_exit_check(model, members, Vbox, options, run_batch, batch, order):
+def _early_exit_check(model, members, Vbox, options, run_batch, batch, order, failed=None):
     """``check(W)`` for the merge: all members conformant, in batches, stopping at the first failure.
 
     ``order`` (indices into ``members``, likeliest failure first) is updated so
-    that a member that failed is checked first next time.
+    that a member that failed is checked first next time.  ``failed`` (a
+    list) receives the verdicts of the members that failed the last check.
     """
+    failed = [] if failed is None else failed
 
     def check(W):
+        failed.clear()
         for i in range(0, len(order), batch):
             idx = order[i : i + batch]
             res = run_batch([(model, members[j][0], W, Vbox, options) for j in idx])
-            bad = [j for j, ok in zip(idx, res) if not ok]
+            bad = [j for j, v in zip(idx, res) if Verdict(v) != Verdict.CONFORMANT]
             if bad:
+                failed.extend(Verdict(v) for v in res if Verdict(v) != Verdict.CONFORMANT)
                 order[:] = bad + [j for j in order if j not in bad]
                 return False
         return True
@@ -369,9 +373,9 @@ def _early_exit_check(model, members, Vbox, options, run_batch, batch, order):
     return check
 
 
-def _check_job(job) -> bool:
+def _check_job(job) -> Verdict:
     model, case, W, V, options = job
-    return _reach_ok(model, case, W, V, options)
+    return reachset_check(model, case, W, V, options).verdict
 
 
 def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, workers=None, scheduler=None,
@@ -392,11 +396,13 @@ def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, worke
     -------
     SynthesisResult
     """
-    options = options or SynthesisOptions()
+    require_model(model, "synthesize_W")
+    options = check_options(options, SynthesisOptions, "synthesize_W")
+    workers = check_workers(workers, "synthesize_W: workers")
+    cases = suite_cases(suite, "synthesize_W")
     t_all = time.perf_counter()
     Vb = as_box(V, model.p, "V")
     Vbox = Interval(Vb.lo, Vb.hi)
-    cases = list(suite)
     if executor is not None:
         return _synthesize(model, cases, Vbox, options, executor, scheduler, progress, t_all)
     pool = process_pool(min(int(workers), len(cases))) if workers and workers > 1 and scheduler is None else None
@@ -416,7 +422,7 @@ def _synthesize(model, cases, Vbox, options, pool, scheduler, progress, t_all):
     for i, cs in zip(longest, done):
         per_case[i] = cs
     result_cases = {c.name: c for c in per_case}
-    groups, galpha, gok, gsec = {}, {}, {}, {}
+    groups, galpha, gok, gsec, gver = {}, {}, {}, {}, {}
     if options.merge:
         by_group: dict = {}
         for case, cs in zip(cases, per_case):
@@ -433,7 +439,7 @@ def _synthesize(model, cases, Vbox, options, pool, scheduler, progress, t_all):
                 futs = {g: threads.submit(_merge_group, model, m, Vbox, options, run_batch, batch)
                         for g, m in by_group.items()}  # fmt: skip
                 for g, f in futs.items():
-                    groups[g], galpha[g], gok[g], gsec[g] = f.result()
+                    groups[g], galpha[g], gok[g], gsec[g], gver[g] = f.result()
         else:
             batch = 1 if scheduler is None else 10**9
 
@@ -441,9 +447,10 @@ def _synthesize(model, cases, Vbox, options, pool, scheduler, progress, t_all):
                 return run_cases(_check_job, batch_jobs, scheduler=scheduler, progress=False)
 
             for g, members in by_group.items():
-                groups[g], galpha[g], gok[g], gsec[g] = _merge_group(model, members, Vbox, options, run_batch, batch)
+                groups[g], galpha[g], gok[g], gsec[g], gver[g] = _merge_group(model, members, Vbox, options, run_batch,
+                                                                              batch)  # fmt: skip
     return SynthesisResult(result_cases, groups, galpha, gok, Vbox, tuple(model.disturbance_names),
-                           time.perf_counter() - t_all, gsec)  # fmt: skip
+                           time.perf_counter() - t_all, gsec, gver)  # fmt: skip
 
 
 def _merge_group(model, members, Vbox, options, run_batch, batch):
@@ -454,7 +461,11 @@ def _merge_group(model, members, Vbox, options, run_batch, batch):
     hull = Interval(lo, hi)
     # the member most likely to fail is checked first and a check stops at the first failure
     order = sorted(range(len(members)), key=lambda j: (members[j][1].conformant, -members[j][1].alpha))
-    check = _early_exit_check(model, members, Vbox, options, run_batch, batch, order)
+    failed = []
+    check = _early_exit_check(model, members, Vbox, options, run_batch, batch, order, failed)
     iterations = options.merge_iterations or options.alpha_iterations
     alpha, W, ok, _ = alpha_search(check, hull, iterations, options.alpha_max)
-    return W, alpha, ok, time.perf_counter() - t0
+    # not conformant if a member's measurement left its set at the largest α, undecided if only reaches failed
+    verdict = Verdict.CONFORMANT if ok else (Verdict.NOT_CONFORMANT if Verdict.NOT_CONFORMANT in failed
+                                             else Verdict.UNDECIDED)  # fmt: skip
+    return W, alpha, ok, time.perf_counter() - t0, verdict

@@ -20,14 +20,17 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from reachconf.conformance.optctrl import optctrl_trace
+from reachconf.checks import check_field_types, check_options
+from reachconf.conformance.optctrl import NO_TRACE, optctrl_trace
 from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.cases import case_arrays
 from reachconf.io.results import JsonResult
+from reachconf.model.core import require_model
 from reachconf.model.outputs import affine_output, evaluate_outputs, output_index_of_states, state_estimate
 from reachconf.model.simulate import simulate
 from reachconf.sets.convert import as_box
 from reachconf.sets.core import Interval
+from reachconf.verdict import Verdict
 from reachconf_kernels.tracefit import perstep_fit
 
 __all__ = [
@@ -83,6 +86,7 @@ class TraceOptions:
     solver: str | None = None
 
     def __post_init__(self):
+        check_field_types(self)
         if self.objective not in ("absolute", "relative"):
             raise OptionsError(f"TraceOptions.objective must be 'absolute' or 'relative', got {self.objective!r}")
         if self.anchor not in ("auto", "measured", "simulated"):
@@ -123,6 +127,12 @@ class TraceResult(JsonResult):
         Estimated integration error of the simulated outputs.
     disturbance_names, output_names : tuple of str
         The model's channel names (labels of :meth:`plot`).
+    verdict : Verdict
+        ``CONFORMANT`` (the simulated trace keeps every bound), ``NOT_CONFORMANT``
+        (the disturbance trace Alg. 1 found leaves W or V once simulated: the
+        report's verdict, though another trace might exist), or ``UNDECIDED``
+        (no trace to judge: the simulation diverged or Alg. 2's QP found no
+        trace; ``message`` says why).
     """
 
     case: str
@@ -139,6 +149,10 @@ class TraceResult(JsonResult):
     integration_error: np.ndarray | None = None
     disturbance_names: tuple = ()
     output_names: tuple = ()
+    verdict: Verdict | None = None
+
+    def __post_init__(self):
+        self.verdict = Verdict.of(self.conformant) if self.verdict is None else Verdict(self.verdict)
 
     def disturbance_box(self) -> Interval:
         """Interval hull of the disturbance trace (eqs. 62–66)."""
@@ -149,10 +163,15 @@ class TraceResult(JsonResult):
         return Interval(self.V_trace.min(axis=0), self.V_trace.max(axis=0))
 
     def to_dict(self) -> dict:
-        """The verdict, margins and boxes, and the traces themselves (``t``, ``X``, ``W_trace``, ``V_trace``)."""
+        """The verdict, margins and boxes, and the traces themselves (``t``, ``X``, ``W_trace``, ``V_trace``).
+
+        Numbers that are not finite (margins against an unbounded W, a
+        diverged trace) become ``None`` in the JSON file (see ``verdict``).
+        """
         return {
             "case": self.case,
-            "conformant": bool(self.conformant),
+            "verdict": self.verdict,
+            "conformant": self.verdict.json_conformant,
             "method": self.method,
             "seconds": float(self.seconds),
             "message": self.message,
@@ -178,9 +197,9 @@ class TraceResult(JsonResult):
         ie = d.get("integration_error")
         return cls(d["case"], t, bool(d["conformant"]), np.asarray(d["x0"], dtype=float), X,
                    np.asarray(d["W_trace"], dtype=float).reshape(-1, q), np.asarray(d["V_trace"], dtype=float).reshape(-1, p),
-                   dict(d["margins"]), d["method"], float(d["seconds"]), d["message"],
+                   {k: np.nan if v is None else float(v) for k, v in d["margins"].items()}, d["method"], float(d["seconds"]), d["message"],
                    None if ie is None else np.asarray(ie, dtype=float), tuple(d["disturbance_names"]),
-                   tuple(d["output_names"]))  # fmt: skip
+                   tuple(d["output_names"]), Verdict(d.get("verdict", Verdict.of(bool(d["conformant"])))))  # fmt: skip
 
     def plot(self, ax=None, model=None):
         """Disturbance and measurement-error traces over time (two axes); returns them.
@@ -212,7 +231,7 @@ class TraceResult(JsonResult):
         axes[1].set_xlabel("t [s]")
         for a in axes:
             a.legend(fontsize=7, ncol=3)
-        axes[0].set_title(f"{self.case}: {'conformant' if self.conformant else 'not conformant'} ({self.method})")
+        axes[0].set_title(f"{self.case}: {self.verdict.label} ({self.method})")
         return axes
 
 
@@ -245,7 +264,7 @@ def _weights(model, Yx, V_lo, V_hi, objective):
 # IVP and verdict (Alg. 1, lines 3-5)
 # ---------------------------------------------------------------------------
 def simulate_verdict(model, case_name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, substeps, method, t0,
-                     message="") -> TraceResult:  # fmt: skip
+                     message="", search_failed=False) -> TraceResult:  # fmt: skip
     """Alg. 1, lines 3-5: simulate a candidate trace and judge it against the bounds (eqs. 22-24).
 
     The model is simulated from ``x0`` with the disturbance trace ``Wt`` (RK4 at
@@ -272,6 +291,9 @@ def simulate_verdict(model, case_name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, 
     t0 : float
         ``time.perf_counter()`` at the start (for ``seconds``).
     message : str
+    search_failed : bool
+        DISTURBANCETRACE found no trace (Alg. 2's QP failed): a trace that
+        then misses the bounds gives ``UNDECIDED``, not ``NOT_CONFORMANT``.
 
     Returns
     -------
@@ -300,8 +322,9 @@ def simulate_verdict(model, case_name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, 
     ok = ok and finite
     if not finite:
         message = (message + "; " if message else "") + "the simulated trace diverged (NaN/inf)"
+    verdict = Verdict.of(ok, undecided=not ok and (not finite or search_failed))
     return TraceResult(case_name, t, bool(ok), x0, X, Wt, Vt, margins, method, time.perf_counter() - t0,
-                       message, yerr.max(axis=0), model.disturbance_names, model.output_names)  # fmt: skip
+                       message, yerr.max(axis=0), model.disturbance_names, model.output_names, verdict)  # fmt: skip
 
 
 # ---------------------------------------------------------------------------
@@ -328,7 +351,6 @@ def trace_disturbances(model, case, method: str = "perstep", V=None, options: Tr
     The verdict fields refer to unbounded ``W`` and the given ``V`` (default
     ``{0}``).  Synthesis step 1 (eqs. 62–66) takes ``result.disturbance_box()``.
     """
-    options = options or TraceOptions()
     return trace_conformance(model, case, None, V, method=method, options=options, _unbounded=True)
 
 
@@ -351,9 +373,11 @@ def trace_conformance(model, case, W, V, method: str = "perstep", options: Trace
     TraceResult
     """
     t0 = time.perf_counter()
-    options = options or TraceOptions()
-    if method not in ("perstep", "optctrl"):
-        raise OptionsError(f"method must be 'perstep' or 'optctrl', got {method!r}")
+    where = "trace_disturbances" if _unbounded else "trace_conformance"
+    require_model(model, where)
+    options = check_options(options, TraceOptions, where)
+    if not isinstance(method, str) or method not in ("perstep", "optctrl"):
+        raise OptionsError(f"{where}: method must be 'perstep' or 'optctrl', got {method!r}")
     t, U, Y = case_arrays(model, case)
     if _unbounded:
         W_lo, W_hi = np.full(model.q, -np.inf), np.full(model.q, np.inf)
@@ -369,4 +393,4 @@ def trace_conformance(model, case, W, V, method: str = "perstep", options: Trace
                                 f"perstep ({anchor})", t0)  # fmt: skip
     x0, Wt, message = optctrl_trace(model, t, U, Y, W_lo, W_hi, V_lo, V_hi, options, case)
     return simulate_verdict(model, name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, options.substeps, "optctrl", t0,
-                            message)  # fmt: skip
+                            message, search_failed=NO_TRACE in message)  # fmt: skip
