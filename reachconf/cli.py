@@ -1,67 +1,78 @@
 """Command line: ``reachconf {demo,reach,conform,synth,diagnose,plot}``.
 
-User errors (bad run file, data, options, sets) print one line and exit
-with status 2; Ctrl-C saves the partial results and exits with 130.
+Everything a command needs is checked before the work starts, in this
+order: the output paths (``--out`` is a folder or can be created, ``--json``
+is a file name, both writable; both are locked so that a second run into
+them fails at once), the run file, the test suite and the options.
+
+Exit statuses:
+
+=====  =====================================================================
+0      done; every verdict decided (conformant or not conformant)
+2      user error: one line ``reachconf: error: ...`` naming the file,
+       argument, row or column (nothing was computed if it was found before
+       the work)
+3      done, but some verdict is *undecided* (a reach failed, a trace
+       diverged); the summary and the JSON say which and why
+130    interrupted (Ctrl-C); partial results went to a new file
+       (``<json>.partial.json`` or ``<out>/<command>.partial.json``), never
+       over an earlier complete one
+1      an internal error (a bug: please report the traceback)
+=====  =====================================================================
 """
 
 from __future__ import annotations
 
 import argparse
-import inspect
-import json
 import os
+import signal
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from reachconf.errors import DataError, ReachconfError
 
-__all__ = ["main"]
+__all__ = ["main", "build_parser", "EXIT_OK", "EXIT_USER_ERROR", "EXIT_UNDECIDED", "EXIT_INTERRUPTED"]
+
+EXIT_OK = 0
+#: a user error (bad run file, data, options, output path)
+EXIT_USER_ERROR = 2
+#: finished, but at least one verdict is undecided (or a reach failed)
+EXIT_UNDECIDED = 3
+#: Ctrl-C
+EXIT_INTERRUPTED = 130
 
 
-def _write_json(path, obj):
-    from reachconf.io.atomic import atomic_write
-
-    atomic_write(path, json.dumps(obj, indent=2, default=_jsonable))
-
-
-def _jsonable(v):
-    if isinstance(v, np.ndarray):
-        return v.tolist()
-    if isinstance(v, (np.floating, np.integer, np.bool_)):
-        return v.item()
-    if hasattr(v, "to_list"):
-        return v.to_list()
-    return str(v)
+def _interrupted_at_start(signum, frame):  # pragma: no cover - exercised through a subprocess
+    sys.stderr.write("reachconf: interrupted\n")
+    raise SystemExit(EXIT_INTERRUPTED)  # unwinds the import in progress without a traceback
 
 
-def _outdir(args) -> Path | None:
-    if args.out is None:
-        return None
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    return out
+# Ctrl-C while Python imports numpy, scipy, numba (the first second of a run) must not print a traceback:
+# when this module is the program, that handler is installed before anything heavy is imported; main()
+# replaces it by the KeyboardInterrupt that saves partial results.
+if __name__ == "__main__" or Path(sys.argv[0] if sys.argv else "").stem == "reachconf":
+    signal.signal(signal.SIGINT, _interrupted_at_start)
 
 
-def _savefig(fig, path: Path):
-    from reachconf.plot import save_figure
+class _Run:
+    """What a command has done so far: outputs, partial results (saved on Ctrl-C), undecided verdicts."""
 
-    save_figure(fig, path, dpi=120, bbox_inches=None)
+    def __init__(self, args, outputs):
+        self.args = args
+        self.outputs = outputs
+        self.partial = None  # results so far (a dict filled as the command goes)
+        self.undecided = False
 
 
-# ----------------------------------------------------------------------------- commands
-
-
-def cmd_demo(args):
-    """``reachconf demo``: the main job on the shipped lane-change suite."""
-    from reachconf.demo import run_demo
-
-    summary = run_demo(args.out or "demo", workers=args.workers)
-    if args.json:
-        _write_json(args.json, summary)
-    return 0
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer (number of processes), got {value}")
+    return value
 
 
 def _select_cases(spec, args):
@@ -75,23 +86,62 @@ def _select_cases(spec, args):
     return suite
 
 
-def cmd_reach(args):
+def _load(args):
+    from reachconf.runfile import load_run
+
+    return load_run(args.run)
+
+
+def _savefig(fig, path: Path):
+    import matplotlib.pyplot as plt
+
+    from reachconf.plot import save_figure
+
+    save_figure(fig, path, dpi=120, bbox_inches=None)
+    plt.close(fig)
+
+
+def _pick(d: dict, *keys) -> dict:
+    return {k: d[k] for k in keys if k in d}
+
+
+# ----------------------------------------------------------------------------- commands
+
+
+def cmd_demo(args, run):
+    """``reachconf demo``: the main job on the shipped lane-change suite."""
+    from reachconf.demo import run_demo
+
+    summary = run_demo(run.outputs.folder, workers=args.workers)
+    if args.json:
+        run.outputs.write_json(args.json, summary)
+    return EXIT_OK
+
+
+def cmd_reach(args, run):
     """``reachconf reach RUN.toml``: reach tubes per test case (``.npz`` and X-Y pictures)."""
     import matplotlib.pyplot as plt
 
     from reachconf.conformance.reachset import initial_set
+    from reachconf.errors import ReachError
     from reachconf.reach import reach
 
     spec = _load(args)
     suite = _select_cases(spec, args)
-    out = _outdir(args)
-    results = {}
+    X0s = {case.name: spec.X0 if spec.X0 is not None else initial_set(spec.model, case, spec.V) for case in suite}
+    out = run.outputs.folder
+    results = run.partial = {}
     for case in suite:
-        X0 = spec.X0 if spec.X0 is not None else initial_set(spec.model, case, spec.V)
         t0 = time.perf_counter()
-        tube = reach(spec.model, X0, case.t - case.t[0], inputs=case.U if spec.model.m else None, W=spec.W,
-                     options=spec.reach_options)  # fmt: skip
-        entry = {"seconds": time.perf_counter() - t0, "bounds": tube.bounds().tolist(), "splits": tube.splits}
+        try:
+            tube = reach(spec.model, X0s[case.name], case.t - case.t[0], inputs=case.U if spec.model.m else None,
+                         W=spec.W, options=spec.reach_options)  # fmt: skip
+        except ReachError as exc:
+            run.undecided = True
+            results[case.name] = {"failed": True, "message": str(exc), "seconds": time.perf_counter() - t0}
+            print(f"{case.name}: reach failed: {' '.join(str(exc).split())}")
+            continue
+        entry = {"failed": False, "seconds": time.perf_counter() - t0, "bounds": tube.bounds(), "splits": tube.splits}
         if out is not None:
             entry["npz"] = str(tube.save(out / f"{case.name}_tube.npz"))
             fig, ax = plt.subplots(figsize=(8, 4))
@@ -99,96 +149,106 @@ def cmd_reach(args):
             ax.legend()
             fig.tight_layout()
             _savefig(fig, out / f"{case.name}_tube.png")
-            plt.close(fig)
             entry["png"] = str(out / f"{case.name}_tube.png")
         results[case.name] = entry
         print(f"{case.name}: reach over {case.duration:g} s in {entry['seconds']:.2f} s")
-    if args.json:
-        _write_json(args.json, results)
-    return 0
+    _write_results(run, results, "reach.json")
+    return EXIT_UNDECIDED if run.undecided else EXIT_OK
 
 
-def cmd_conform(args):
+def _write_results(run, results, name):
+    """``--json`` and ``<out>/name`` (strict JSON)."""
+    if run.args.json:
+        run.outputs.write_json(run.args.json, results)
+    if run.outputs.folder is not None:
+        run.outputs.write_json(run.outputs.folder / name, results)
+
+
+def cmd_conform(args, run):
     """``reachconf conform RUN.toml``: trace and/or reachset conformance per test case."""
     from reachconf.conformance.reachset import reachset_conformance
     from reachconf.conformance.trace import trace_conformance
+    from reachconf.verdict import Verdict
 
     spec = _load(args)
     suite = _select_cases(spec, args)
     kinds = ["trace", "reachset"] if args.kind == "both" else [args.kind]
-    results = {}
+    if spec.W is None or spec.V is None:
+        raise DataError(f"{spec.path}: {' and '.join(kinds)} conformance needs sets.W and sets.V")
+    results = run.partial = {}
     for case in suite:
         entry = {}
         if "trace" in kinds:
-            if spec.W is None or spec.V is None:
-                raise DataError(f"{spec.path}: trace conformance needs sets.W and sets.V")
             res = trace_conformance(spec.model, case, spec.W, spec.V, method=spec.trace_method,
                                     options=spec.trace_options)  # fmt: skip
-            entry["trace"] = {"conformant": res.conformant, "margins": res.margins, "seconds": res.seconds,
-                              "message": res.message}  # fmt: skip
+            entry["trace"] = _pick(res.to_dict(), "verdict", "conformant", "margins", "seconds", "message")
         if "reachset" in kinds:
-            if spec.W is None or spec.V is None:
-                raise DataError(f"{spec.path}: reachset conformance needs sets.W and sets.V")
             res = reachset_conformance(spec.model, case, spec.W, spec.V, X0=spec.X0, options=spec.reach_options,
                                        keep_tube=False)  # fmt: skip
-            entry["reachset"] = {"conformant": res.conformant, "first_violation_time": res.first_violation_time,
-                                 "max_violation": res.max_violation, "seconds": res.seconds,
-                                 "message": res.message}  # fmt: skip
-        results[case.name] = entry
-        verdicts = ", ".join(f"{k}: {'conformant' if v['conformant'] else 'NOT conformant'}" for k, v in entry.items())
-        print(f"{case.name}: {verdicts}")
-    if args.json:
-        _write_json(args.json, results)
-    return 0
+            entry["reachset"] = _pick(res.to_dict(), "verdict", "conformant", "first_violation_time", "max_violation",
+                                      "seconds", "message")  # fmt: skip
+        parts = []
+        for kind, e in entry.items():
+            verdict = Verdict(e["verdict"])
+            run.undecided |= verdict is Verdict.UNDECIDED
+            why = f" ({' '.join(e['message'].split())})" if verdict is Verdict.UNDECIDED else ""
+            parts.append(f"{kind}: {verdict.label}{why}")
+        results[case.name] = entry  # complete cases only: a Ctrl-C saves these
+        print(f"{case.name}: {', '.join(parts)}")
+    _write_results(run, results, "conformance.json")
+    return EXIT_UNDECIDED if run.undecided else EXIT_OK
 
 
-def cmd_synth(args):
+def cmd_synth(args, run):
     """``reachconf synth RUN.toml``: the minimal disturbance set (steps 1-3 and the merge)."""
-    import matplotlib.pyplot as plt
-
     from reachconf.conformance.synthesis import synthesize_W
+    from reachconf.runner import check_scheduler
+    from reachconf.verdict import Verdict
 
     spec = _load(args)
     if spec.V is None:
         raise DataError(f"{spec.path}: synthesis needs sets.V")
     suite = _select_cases(spec, args)
+    check_scheduler(args.scheduler)
     res = synthesize_W(spec.model, suite, spec.V, spec.synthesis_options, workers=args.workers or spec.workers,
                        scheduler=args.scheduler)  # fmt: skip
     print(res.table())
     for c in res.cases.values():
-        print(f"  {c.name}: alpha = {c.alpha:.4g}, reachset conformant: {c.conformant}, {c.seconds:.2f} s"
+        print(f"  {c.name}: alpha = {c.alpha:.4g}, W_RC {c.verdict.label}, {c.seconds:.2f} s"
               + (f" ({c.message})" if c.message else ""))  # fmt: skip
     if args.json:
-        res.to_json(args.json)
-    out = _outdir(args)
-    if out is not None:
-        res.save(out / "synthesis.json")
-        fig = res.plot()[0].figure
-        _savefig(fig, out / "synthesis.png")
-        plt.close(fig)
-    return 0
+        res.save(args.json)
+    if run.outputs.folder is not None:
+        res.save(run.outputs.folder / "synthesis.json")
+        if res.groups:
+            _savefig(res.plot()[0].figure, run.outputs.folder / "synthesis.png")
+    return EXIT_UNDECIDED if res.verdict is Verdict.UNDECIDED else EXIT_OK
 
 
-def cmd_plot(args):
+def cmd_plot(args, run):
     """``reachconf plot FILE``: draw a saved result (tube ``.npz`` or result ``.json``)."""
-    import matplotlib.pyplot as plt
+    import inspect
+
+    import numpy as np
 
     path = Path(args.result)
     if not path.is_file():
         raise DataError(f"{path}: no such result file")
-    out = _outdir(args) or path.parent
+    out = run.outputs.folder or path.parent
     result = _load_result(path)
     kwargs = {}
     if args.dims:
         if "dims" not in inspect.signature(result.plot).parameters:
             raise DataError(f"{path}: --dims applies to tubes and reachset results, not to a {type(result).__name__}")
         kwargs["dims"] = tuple(int(d) if d.isdigit() else d for d in args.dims)
-    ax = np.atleast_1d(result.plot(**kwargs))[0]
+    try:
+        ax = np.atleast_1d(result.plot(**kwargs))[0]
+    except (ValueError, IndexError, KeyError, TypeError) as exc:  # a loaded file whose parts do not fit together
+        raise DataError(f"{path}: cannot be drawn ({type(exc).__name__}: {exc})") from None
     target = out / (path.stem + ".png")
     _savefig(ax.figure, target)
-    plt.close(ax.figure)
     print(f"wrote {target}")
-    return 0
+    return EXIT_OK
 
 
 def _load_result(path: Path):
@@ -211,53 +271,47 @@ def _load_result(path: Path):
     kind = d.get("result")
     if kind is None:  # files written before results carried their type
         kind = "SynthesisResult" if "groups" in d and "disturbances" in d else "ParetoFront" if "front" in d else None
-    if kind not in types:
+    if not isinstance(kind, str) or kind not in types:
         raise DataError(f"{path}: not a reachconf result that can be plotted (keys {sorted(d)[:6]})")
     return types[kind].load(path)
 
 
-def cmd_diagnose(args):
+def cmd_diagnose(args, run):
     """``reachconf diagnose RUN.toml --json report.json --out DIR``: the sim-to-real gap diagnosis."""
     from reachconf.diagnose.pipeline import diagnose
-    from reachconf.io.cases import TestSuite
+    from reachconf.io.atomic import atomic_write
     from reachconf.runfile import diagnose_settings
 
     spec = _load(args)
-    suite = spec.suite()
-    if args.case:
-        cases = [c for c in suite if c.name in set(args.case)]
-        missing = sorted(set(args.case) - {c.name for c in cases})
-        if missing:
-            raise DataError(f"{spec.path}: no test cases named {missing} in {spec.suite_path}")
-        suite = TestSuite(cases)
+    suite = _select_cases(spec, args)
     kwargs = diagnose_settings(spec)
     report = diagnose(spec.model, suite, V=spec.V, **kwargs)
-    out = _outdir(args)
     if args.json:
         report.to_json(args.json)
+    out = run.outputs.folder
     if out is not None:
-        from reachconf.io.atomic import atomic_write
-
         report.save(out / "report.json")
         atomic_write(out / "report.md", report.summary())
         report.save_plots(out)
     print(report.verdict)
-    return 0
-
-
-def _load(args):
-    from reachconf.runfile import load_run
-
-    return load_run(args.run)
+    return EXIT_OK
 
 
 # ----------------------------------------------------------------------------- parser
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the package's one-line errors (status 2)."""
+
+    def error(self, message):
+        self.exit(EXIT_USER_ERROR, f"reachconf: error: {self.prog.split()[-1]}: {message} (see --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    """The ``argparse`` parser of the command line."""
-    p = argparse.ArgumentParser(prog="reachconf", description="Reachability-based conformance checking.")
-    sub = p.add_subparsers(dest="command", required=True)
+    """The ``argparse`` parser of the command line (usage errors: one line, status 2)."""
+    p = _Parser(prog="reachconf", description="Reachability-based conformance checking.",
+                epilog="exit status: 0 done, 2 user error, 3 some verdict undecided, 130 interrupted")  # fmt: skip
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     def common(sp, run=True):
         if run:
@@ -265,7 +319,7 @@ def build_parser() -> argparse.ArgumentParser:
             sp.add_argument("--case", action="append", help="only this test case (repeatable)")
         sp.add_argument("--json", help="write machine-readable results to this file")
         sp.add_argument("--out", help="folder for pictures and result files")
-        sp.add_argument("--workers", type=int, default=None, help="local worker processes")
+        sp.add_argument("--workers", type=_positive_int, default=None, help="local worker processes (>= 1)")
         sp.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://host:port")
 
     sp = sub.add_parser("demo", help="run the main job on the shipped example suite")
@@ -288,30 +342,97 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("result")
     sp.add_argument("--out", help="folder for the PNG (default: next to the result)")
     sp.add_argument("--dims", nargs=2, help="two states of a tube (names or indices) or outputs of a reachset result")
-    sp.set_defaults(fn=cmd_plot)
+    sp.set_defaults(fn=cmd_plot, json=None)
     return p
 
 
-def main(argv=None) -> int:
-    """Run the command line with ``argv`` (default ``sys.argv[1:]``); returns the exit status (0, 2 on user errors, 130 on Ctrl-C)."""
-    os.environ.setdefault("MPLBACKEND", "Agg")
-    parser = build_parser()
-    args = parser.parse_args(argv)
+# ----------------------------------------------------------------------------- main
+
+
+def _one_line(exc) -> str:
+    if isinstance(exc, ReachconfError):
+        text = str(exc)
+    else:  # an OSError about a path the user gave
+        name = exc.filename if getattr(exc, "filename", None) else None
+        reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+        text = f"{name}: {reason}" if name else reason
+    return "reachconf: error: " + " ".join(text.split())
+
+
+def _outputs(args):
+    from reachconf.io.output import RunOutputs, check_output_folder
+
+    if args.command == "plot":  # one picture next to the result or in --out: checked, not locked
+        if args.out is not None:
+            check_output_folder(args.out)
+        return RunOutputs("plot", folder=args.out)
+    folder = args.out if args.out is not None or args.command != "demo" else "demo"
+    return RunOutputs(args.command, folder=folder, json=args.json).open()
+
+
+def _save_partial(run, exc) -> str:
+    """Partial results to a new file; the message tail for stderr."""
+    from reachconf.io.jsonfile import to_jsonable
+
+    partial = run.partial
+    done = getattr(exc, "partial", None)  # reachconf.runner.Interrupted: the jobs finished so far
+    if done is not None:
+        partial = [r for r in done if r is not None]
+    if not partial:
+        return "; no results finished yet"
+    data = {"interrupted": True, "complete": False, "command": run.args.command, "partial": to_jsonable(partial)}
+    target = run.outputs.save_partial(data)
+    if target is None:
+        return "; partial results not saved (no --json or --out given)"
+    return f"; partial results in {target}"
+
+
+def _handle_interrupt(run, exc) -> int:
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN) if _main_thread() else None
     try:
-        return args.fn(args)
-    except KeyboardInterrupt as exc:
-        partial = getattr(exc, "partial", None)
-        if partial is not None and getattr(args, "json", None):
-            _write_json(args.json, {"interrupted": True, "partial": [getattr(r, "to_dict", lambda: r)() if r is not None else None for r in partial]})
-        print("reachconf: interrupted" + (f"; partial results in {args.json}" if partial is not None and getattr(args, "json", None) else ""),
-              file=sys.stderr)  # fmt: skip
-        return 130
-    except ReachconfError as exc:
-        print(f"reachconf: error: {' '.join(str(exc).split())}", file=sys.stderr)
-        return 2
-    except OSError as exc:  # unreadable/unwritable files given by the user
-        print(f"reachconf: error: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
+        tail = _save_partial(run, exc)
+    except ReachconfError as err:
+        tail = f"; partial results not saved: {err}"
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGINT, old)
+    print(f"reachconf: interrupted{tail}", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
+def _main_thread() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
+
+
+def main(argv=None) -> int:
+    """Run the command line; returns the exit status (see the module docstring)."""
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler) if _main_thread() else None
+    run = None
+    try:
+        try:
+            args = build_parser().parse_args(argv)
+        except SystemExit as exc:  # --help (0) or a usage error (2, printed by _Parser.error)
+            return exc.code if isinstance(exc.code, int) else EXIT_USER_ERROR
+        run = _Run(args, None)
+        run.outputs = _outputs(args)  # checked and locked before anything is computed
+        try:
+            return args.fn(args, run)
+        except KeyboardInterrupt as exc:
+            return _handle_interrupt(run, exc)
+        finally:
+            run.outputs.close()
+    except KeyboardInterrupt:  # while checking the arguments: nothing computed, nothing to save
+        print("reachconf: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (ReachconfError, OSError) as exc:
+        print(_one_line(exc), file=sys.stderr)
+        return EXIT_USER_ERROR
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
 
 
 if __name__ == "__main__":

@@ -23,7 +23,6 @@ accelerating too fast" (outside the acceleration model's set only), or both.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -33,7 +32,7 @@ import numpy as np
 
 from reachconf.datasets.biwi import prediction_cases, read_sequence
 from reachconf.errors import ReachconfError
-from reachconf.io import atomic_write
+from reachconf.io import atomic_write, json_text
 from reachconf.plot import save_figure
 from reachconf.sets import Zonotope, box_disk_distance, disk_zonotope
 
@@ -119,7 +118,7 @@ def plot_curve(cases, out: Path):
     save_figure(fig, out / "pass_rate_curve.png", dpi=120, bbox_inches=None)
     plt.close(fig)
     curve = {"v_max": V_MAX, "a_max": grid.tolist(), "rate_percent": rate, "quantiles": quant}
-    atomic_write(out / "pass_rate_curve.json", json.dumps(curve, indent=2))
+    atomic_write(out / "pass_rate_curve.json", json_text(curve))
     return curve
 
 
@@ -143,7 +142,7 @@ def main(argv=None):
     seconds = time.perf_counter() - t_start
     result = dict(table, seconds=seconds, setup=default, disk=args.disk, report=REPORT,
                   setups={k: v for k, (_, v) in variants.items()}, pass_rate_curve=curve["quantiles"])  # fmt: skip
-    atomic_write(out / "table9.json", json.dumps(result, indent=2))
+    atomic_write(out / "table9.json", json_text(result))
     lines = ["| set-up | pedestrians | test cases | passed | rate |", "|---|---|---|---|---|",
              f"| report (Table 9) | {REPORT['pedestrians']} | {REPORT['test_cases']} | {REPORT['passed']} | {REPORT['rate']:.2f} % |"]  # fmt: skip
     for k, v in result["setups"].items():

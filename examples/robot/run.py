@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-import json
 import os
 import sys
 import time
@@ -52,7 +51,7 @@ import numpy as np
 
 from reachconf.datasets.biwi import ANNOTATION_DT, read_sequence
 from reachconf.errors import ReachconfError
-from reachconf.io import atomic_write
+from reachconf.io import atomic_write, json_text
 from reachconf.plot import save_figure
 from reachconf.sets import BoxDisk
 
@@ -367,7 +366,7 @@ def main(argv=None):
         res["route"] = r["route"]
         plot_run(scene, res, zones, out)
     result = dict(table, seconds=time.perf_counter() - t0)
-    atomic_write(out / "robot.json", json.dumps(result, indent=2))
+    atomic_write(out / "robot.json", json_text(result))
     lines = ["| layer | scenario | runs | at goal | mean time [s] | mean velocity [m/s] | collisions while moving |",
              "|---|---|---|---|---|---|---|"]  # fmt: skip
     for layer in LAYERS:

@@ -40,7 +40,6 @@ one-line error, exit 2.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import sys
@@ -53,7 +52,7 @@ import reachconf as rc
 from reachconf.conformance import TraceOptions, trace_disturbances
 from reachconf.datasets.aero import fit_aero, read_performance_table
 from reachconf.datasets.openfast import read_output
-from reachconf.io import TestCase, atomic_write
+from reachconf.io import TestCase, atomic_write, json_text
 from reachconf.model import evaluate_outputs, simulate, state_estimate
 from reachconf.models.windturbine import CP_DEFAULT, CT_DEFAULT, wind_turbine
 from reachconf.plot import save_figure
@@ -329,7 +328,7 @@ def main(argv=None):
     except (rc.ReachconfError, OSError) as exc:
         print(f"windturbine: error: {exc}", file=sys.stderr)
         return 2
-    atomic_write(out / "windturbine.json", json.dumps(result, indent=2, allow_nan=False))
+    atomic_write(out / "windturbine.json", json_text(result))
     print(f"wrote {out / 'windturbine.json'}")
     return 0
 

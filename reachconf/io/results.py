@@ -15,6 +15,7 @@ import numpy as np
 
 from reachconf.errors import DataError
 from reachconf.io.atomic import atomic_write
+from reachconf.io.jsonfile import json_text
 
 __all__ = ["JsonResult", "jsonable", "read_json"]
 
@@ -36,9 +37,13 @@ def read_json(path) -> dict:
     if not path.is_file():
         raise DataError(f"{path}: no such result file")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise DataError(f"{path}: not valid JSON: {exc}") from None
+        data = json.loads(path.read_bytes().decode("utf-8-sig"))
+    except UnicodeDecodeError:
+        raise DataError(f"{path}: not a JSON text file (not UTF-8)") from None
+    except (json.JSONDecodeError, RecursionError) as exc:
+        raise DataError(f"{path}: not valid JSON: {str(exc)[:200]}") from None
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read the file: {exc.strerror or exc}") from None
     if not isinstance(data, dict):
         raise DataError(f"{path}: a result file holds a JSON object, got {type(data).__name__}")
     return data
@@ -57,8 +62,9 @@ class JsonResult:
         raise NotImplementedError
 
     def to_json(self, path=None, indent: int = 2) -> str:
-        """JSON text of the result (with its class name under ``"result"``); written atomically to ``path`` if given."""
-        text = json.dumps({"result": type(self).__name__, **self.to_dict()}, indent=indent, default=jsonable)
+        """Strict JSON text of the result (with its class name under ``"result"``; numbers that are not finite
+        become ``null``, see :func:`reachconf.io.jsonfile.json_text`); written atomically to ``path`` if given."""
+        text = json_text({"result": type(self).__name__, **self.to_dict()}, indent=indent)
         if path is not None:
             atomic_write(path, text)
         return text
