@@ -105,16 +105,16 @@ def _describe_run() -> str:
 class OutputLock:
     """Exclusive lock of an output folder or file for the duration of one run.
 
+    Use as a context manager, or :meth:`acquire` / :meth:`release`.  The
+    lock file holds the process id, host, start time and command of the run
+    holding it, which the error message of a second run quotes.
+
     Parameters
     ----------
     target : path-like
         The folder or file the run writes.
     option : str
         The command-line option that named it (for messages).
-
-    Use as a context manager, or :meth:`acquire` / :meth:`release`.  The
-    lock file holds the process id, host, start time and command of the run
-    holding it, which the error message of a second run quotes.
     """
 
     def __init__(self, target, option: str = "--out"):
@@ -189,6 +189,9 @@ class OutputLock:
 class RunOutputs:
     """The output folder and JSON file of one command, checked and locked before the work starts.
 
+    Use as a context manager around the whole run (checks and locks on
+    entry, releases on exit), or :meth:`open` / :meth:`close`.
+
     Parameters
     ----------
     command : str
@@ -197,9 +200,6 @@ class RunOutputs:
         ``--out``: created, probed and locked.
     json : path-like, optional
         ``--json``: its folder created and probed, the file locked.
-
-    Use as a context manager around the whole run (checks and locks on
-    entry, releases on exit).
     """
 
     def __init__(self, command: str, folder=None, json=None):

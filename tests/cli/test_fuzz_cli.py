@@ -9,13 +9,13 @@ another exception, never a traceback, and never a file written into
 
 import json
 import math
+import os
 import shutil
 import tempfile
 import tomllib
 from pathlib import Path
 from unittest import mock
 
-import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
@@ -24,7 +24,8 @@ from reachconf.demo import demo_run_file
 from reachconf.errors import DataError
 from reachconf.runfile import load_run
 
-FUZZ = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+#: examples per fuzz test; REACHCONF_FUZZ_EXAMPLES=5000 for a long run
+FUZZ = settings(max_examples=int(os.environ.get("REACHCONF_FUZZ_EXAMPLES", 60)), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 BASE = tomllib.loads(demo_run_file().read_text())
 
 
@@ -153,10 +154,23 @@ def test_plot_of_fuzzed_json_draws_or_stops_with_one_line(value):
             assert not path.with_suffix(".png").exists()
 
 
-@pytest.mark.parametrize("value", [{"disturbances": ["w"], "groups": {"g": [[0, 1]]}},
-                                   {"disturbances": ["w"], "start": [[0, 2]], "check": "reachset",
-                                    "front": [{"box": [[0, 1]], "order": [0]}]}])  # fmt: skip
-def test_plot_of_valid_results(tmp_path, value):
-    (tmp_path / "r.json").write_text(json.dumps(value))
-    assert cli.main(["plot", str(tmp_path / "r.json")]) == 0
-    assert (tmp_path / "r.png").stat().st_size > 1000
+def test_plot_of_saved_results(tmp_path):
+    import numpy as np
+
+    from reachconf.conformance.pareto import ParetoFront
+    from reachconf.conformance.synthesis import CaseSynthesis, SynthesisResult
+    from reachconf.sets.core import Interval
+
+    W = Interval([-1.0, -2.0], [1.0, 2.0])
+    case = CaseSynthesis("c", "g", W, W, W, 1.0, True, 0.1)
+    results = {"s.json": SynthesisResult({"c": case}, {"g": W}, {"g": 1.0}, {"g": True}, W, ("w1", "w2"), 0.1),
+               "p.json": ParetoFront([W], [(0, 1)], W, ("w1", "w2"), "reachset")}  # fmt: skip
+    for name, result in results.items():
+        result.save(tmp_path / name)
+        assert cli.main(["plot", str(tmp_path / name)]) == 0
+        assert (tmp_path / name).with_suffix(".png").stat().st_size > 1000
+    d = json.loads((tmp_path / "s.json").read_text())
+    d["groups"]["g"] = [[0, 1]]  # one box for two channels
+    (tmp_path / "bad.json").write_text(json.dumps(d))
+    assert cli.main(["plot", str(tmp_path / "bad.json")]) == 2
+    assert not np.any([p.name == "bad.png" for p in tmp_path.iterdir()])
