@@ -400,6 +400,18 @@ def _handle_interrupt(run, exc) -> int:
     return EXIT_INTERRUPTED
 
 
+def _caused_by_ctrl_c(exc: BaseException) -> bool:
+    """Did a KeyboardInterrupt cause ``exc``?  A Ctrl-C inside a callback from compiled code (numba
+    unpickling a function, a solver) surfaces as a SystemError or a library's own error around it."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def _main_thread() -> bool:
     import threading
 
@@ -420,16 +432,22 @@ def main(argv=None) -> int:
         run.outputs = _outputs(args)  # checked and locked before anything is computed
         try:
             return args.fn(args, run)
+        except Exception as exc:
+            if not _caused_by_ctrl_c(exc):
+                raise
+            return _handle_interrupt(run, exc)
         except KeyboardInterrupt as exc:
             return _handle_interrupt(run, exc)
         finally:
             run.outputs.close()
-    except KeyboardInterrupt:  # while checking the arguments: nothing computed, nothing to save
-        print("reachconf: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except (ReachconfError, OSError) as exc:
-        print(_one_line(exc), file=sys.stderr)
-        return EXIT_USER_ERROR
+    except BaseException as exc:
+        if isinstance(exc, KeyboardInterrupt) or (isinstance(exc, Exception) and _caused_by_ctrl_c(exc)):
+            print("reachconf: interrupted", file=sys.stderr)  # while checking the arguments: nothing to save
+            return EXIT_INTERRUPTED
+        if isinstance(exc, (ReachconfError, OSError)):
+            print(_one_line(exc), file=sys.stderr)
+            return EXIT_USER_ERROR
+        raise
     finally:
         if previous is not None:
             signal.signal(signal.SIGINT, previous)

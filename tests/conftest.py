@@ -8,6 +8,8 @@ Test file names are unique across folders (the folders are not packages).
 """
 
 import importlib.util
+import json
+import math
 import os
 from pathlib import Path
 
@@ -37,3 +39,24 @@ def repo_root() -> Path:
 def data_root() -> Path:
     """The shared real-data folder (``$REACHCONF_DATA`` or ``../shared/data``)."""
     return DATA_ROOT
+
+
+def toml_value(v) -> str:
+    """A TOML value (str, number incl. nan/inf, bool, list, inline table) for the fuzz tests."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=False)
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    return "{" + ", ".join(f"{json.dumps(k)} = {toml_value(x)}" for k, x in v.items()) + "}"
+
+
+def toml_text(doc: dict) -> str:
+    """A minimal TOML writer for fuzzed documents (tables as [sections], nested ones inline)."""
+    plain = [f"{json.dumps(k)} = {toml_value(v)}" for k, v in doc.items() if not isinstance(v, dict)]
+    tables = [f"[{json.dumps(k)}]\n" + "\n".join(f"{json.dumps(a)} = {toml_value(b)}" for a, b in v.items())
+              for k, v in doc.items() if isinstance(v, dict)]  # fmt: skip
+    return "\n".join(plain + tables) + "\n"

@@ -17,21 +17,34 @@ from pathlib import Path
 
 from reachconf.errors import OutputError
 
-__all__ = ["atomic_write", "atomic_write_text", "write_new"]
+__all__ = ["atomic_write", "atomic_write_text", "write_new", "make_folder", "os_reason"]
 
 
-def _reason(exc: OSError) -> str:
+def os_reason(exc: OSError) -> str:
+    """The operating system's reason in an OSError (``"Permission denied"``), for messages."""
     return exc.strerror or str(exc) or type(exc).__name__
 
 
-def _make_parent(path: Path):
-    parent = path.parent
-    if parent.exists() and not parent.is_dir():
-        raise OutputError(f"{path}: cannot write: {parent} is a file, not a folder")
+def make_folder(folder, user_path, what: str = "cannot write") -> Path:
+    """Create ``folder`` (and its parents); :class:`OutputError` naming ``user_path`` if that fails.
+
+    Parameters
+    ----------
+    folder : path-like
+        The folder to create (it may exist).
+    user_path : path-like
+        The path the user gave (the folder itself or a file in it): messages name it.
+    what : str
+        Start of the message after the path (e.g. ``"--out"``).
+    """
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise OutputError(f"{user_path}: {what}: {folder} is a file, not a folder")
     try:
-        parent.mkdir(parents=True, exist_ok=True)
+        folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise OutputError(f"{path}: cannot create its folder {parent}: {_reason(exc)}") from None
+        raise OutputError(f"{user_path}: {what}: cannot create the folder {folder}: {os_reason(exc)}") from None
+    return folder
 
 
 def atomic_write(path, data: bytes | str, overwrite: bool = True) -> Path:
@@ -74,13 +87,13 @@ def atomic_write(path, data: bytes | str, overwrite: bool = True) -> Path:
             with open(path, "wb") as fh:
                 fh.write(data)
         except OSError as exc:
-            raise OutputError(f"{path}: cannot write: {_reason(exc)}") from None
+            raise OutputError(f"{path}: cannot write: {os_reason(exc)}") from None
         return given
-    _make_parent(path)
+    make_folder(path.parent, path)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     except OSError as exc:
-        raise OutputError(f"{path}: cannot write into {path.parent}: {_reason(exc)}") from None
+        raise OutputError(f"{path}: cannot write into {path.parent}: {os_reason(exc)}") from None
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
@@ -97,7 +110,7 @@ def atomic_write(path, data: bytes | str, overwrite: bool = True) -> Path:
     except OSError as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
-        raise OutputError(f"{path}: cannot write: {_reason(exc)}") from None
+        raise OutputError(f"{path}: cannot write: {os_reason(exc)}") from None
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)

@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 from reachconf.errors import OutputError
-from reachconf.io.atomic import atomic_write, write_new
+from reachconf.io.atomic import atomic_write, make_folder, os_reason, write_new
 from reachconf.io.jsonfile import json_text
 
 try:  # POSIX
@@ -40,16 +40,12 @@ __all__ = ["check_output_folder", "check_output_file", "OutputLock", "RunOutputs
 LOCK_NAME = ".reachconf.lock"
 
 
-def _reason(exc: OSError) -> str:
-    return exc.strerror or str(exc) or type(exc).__name__
-
-
 def _probe(folder: Path, user_path: Path, option: str):
     """Create and remove a file in ``folder``; OutputError naming ``user_path`` if that fails."""
     try:
         fd, tmp = tempfile.mkstemp(prefix=".reachconf-probe.", dir=folder)
     except OSError as exc:
-        raise OutputError(f"{user_path}: {option}: cannot write into {folder}: {_reason(exc)}") from None
+        raise OutputError(f"{user_path}: {option}: cannot write into {folder}: {os_reason(exc)}") from None
     os.close(fd)
     os.unlink(tmp)
 
@@ -66,11 +62,7 @@ def check_output_folder(path, option: str = "--out") -> Path:
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise OutputError(f"{path}: {option} must be a folder, but it is a file")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"{path}: {option}: cannot create the folder: {_reason(exc)}") from None
-    _probe(path, path, option)
+    _probe(make_folder(path, path, option), path, option)
     return path
 
 
@@ -85,14 +77,7 @@ def check_output_file(path, option: str = "--json") -> Path:
     path = Path(path)
     if path.is_dir():
         raise OutputError(f"{path}: {option} must be a file name, but it is a folder")
-    parent = path.parent
-    if parent.exists() and not parent.is_dir():
-        raise OutputError(f"{path}: {option}: {parent} is a file, not a folder")
-    try:
-        parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"{path}: {option}: cannot create the folder {parent}: {_reason(exc)}") from None
-    _probe(parent, path, option)
+    _probe(make_folder(path.parent, path, option), path, option)
     return path
 
 
@@ -147,7 +132,7 @@ class OutputLock:
                 fd = os.open(self.path, os.O_CREAT | os.O_RDWR, 0o666)
             except OSError as exc:
                 raise OutputError(f"{self.target}: {self.option}: cannot create the lock file {self.path.name}: "
-                                  f"{_reason(exc)}") from None  # fmt: skip
+                                  f"{os_reason(exc)}") from None  # fmt: skip
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:

@@ -341,3 +341,21 @@ def test_ctrl_c_during_conform_keeps_the_finished_cases(capsys, monkeypatch, run
     saved = json.loads((tmp_path / "c.partial.json").read_text())
     assert list(saved["partial"]) == ["lane_change_01"]  # the finished case only
     assert not (tmp_path / "c.json").exists()
+
+
+def test_ctrl_c_inside_compiled_code_callbacks_is_still_an_interrupt(capsys, monkeypatch, run_file, tmp_path):
+    """A Ctrl-C while numba unpickles a function surfaces as a SystemError caused by the KeyboardInterrupt
+    (seen in the subprocess test under load): still status 130 and the partial results, not a traceback."""
+
+    def work(*args, **kwargs):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise SystemError("<function _numba_unpickle> returned a result with an exception set") from exc
+
+    patch(monkeypatch, "reachconf.conformance.synthesis.synthesize_W", work)
+    status, _, err = main(capsys, "synth", run_file, "--json", tmp_path / "s.json")
+    assert status == 130 and err == ["reachconf: interrupted; no results finished yet"]
+    patch(monkeypatch, "reachconf.conformance.synthesis.synthesize_W", lambda *a, **k: 1 / 0)
+    with pytest.raises(ZeroDivisionError):  # a bug stays a traceback (status 1)
+        cli.main(["synth", str(run_file)])

@@ -8,7 +8,6 @@ another exception, never a traceback, and never a file written into
 """
 
 import json
-import math
 import os
 import shutil
 import tempfile
@@ -19,6 +18,7 @@ from unittest import mock
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
+from conftest import toml_text
 from reachconf import cli
 from reachconf.demo import demo_run_file
 from reachconf.errors import DataError
@@ -27,25 +27,6 @@ from reachconf.runfile import load_run
 #: examples per fuzz test; REACHCONF_FUZZ_EXAMPLES=5000 for a long run
 FUZZ = settings(max_examples=int(os.environ.get("REACHCONF_FUZZ_EXAMPLES", 60)), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 BASE = tomllib.loads(demo_run_file().read_text())
-
-
-def toml_value(v):
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
-    if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False)
-    if isinstance(v, list):
-        return "[" + ", ".join(toml_value(x) for x in v) + "]"
-    return "{" + ", ".join(f"{json.dumps(k)} = {toml_value(x)}" for k, x in v.items()) + "}"
-
-
-def toml_text(doc: dict) -> str:
-    plain = [f"{json.dumps(k)} = {toml_value(v)}" for k, v in doc.items() if not isinstance(v, dict)]
-    tables = [f"[{json.dumps(k)}]\n" + "\n".join(f"{json.dumps(a)} = {toml_value(b)}" for a, b in v.items())
-              for k, v in doc.items() if isinstance(v, dict)]  # fmt: skip
-    return "\n".join(plain + tables) + "\n"
 
 
 scalars = st.one_of(st.text(max_size=6), st.integers(-3, 10**12), st.floats(allow_nan=True), st.booleans())

@@ -9,7 +9,6 @@ unique names with ``t``, finite values, strictly increasing time).
 
 import contextlib
 import io
-import json
 import math
 import os
 import re
@@ -21,11 +20,24 @@ import numpy as np
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
+from conftest import toml_text
 from reachconf.errors import DataError
 from reachconf.io import load_case, load_suite
 
 #: examples per fuzz test; REACHCONF_FUZZ_EXAMPLES=5000 for a long run
 FUZZ = settings(max_examples=int(os.environ.get("REACHCONF_FUZZ_EXAMPLES", 120)), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+def load_or_error(load, path):
+    """``(result, None)``, or ``(None, error)`` for a DataError naming ``path``; anything else (another
+    exception type, a warning such as numpy's ComplexWarning) fails the test."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            return load(path), None
+        except DataError as exc:
+            assert str(path) in str(exc)
+            return None, exc
+
 
 # ---------------------------------------------------------------- CSV
 
@@ -109,15 +121,11 @@ def test_fuzzed_csv_loads_exactly_or_raises_a_data_error_naming_the_file(spec):
         path = Path(d) / "case.csv"
         path.write_bytes(text.encode("utf-8"))
         expected = expected_columns(header, rows)
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            try:
-                case = load_case(path)
-            except DataError as exc:
-                assert str(path) in str(exc)
-                assert expected is None, f"rejected a valid file: {exc}"
-                event("rejected")
-                return
+        case, error = load_or_error(load_case, path)
+        if error is not None:
+            assert expected is None, f"rejected a valid file: {error}"
+            event("rejected")
+            return
         event("loaded")
         assert expected is not None, f"accepted an invalid file:\n{text}"
         np.testing.assert_array_equal(case.t, expected["t"])
@@ -131,12 +139,7 @@ def test_arbitrary_bytes_raise_a_data_error_naming_the_file(data, name):
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / name
         path.write_bytes(data)
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            try:
-                load_case(path)
-            except DataError as exc:
-                assert str(path) in str(exc)
+        load_or_error(load_case, path)
 
 
 # ---------------------------------------------------------------- NPZ
@@ -190,14 +193,10 @@ def test_fuzzed_npz_loads_exactly_or_raises_a_data_error_naming_the_file(spec):
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "case.npz"
         path.write_bytes(data)
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")  # no ComplexWarning: complex data is an error
-            try:
-                case = load_case(path)
-            except DataError as exc:
-                assert str(path) in str(exc)
-                event("npz rejected " + mutation)
-                return
+        case, error = load_or_error(load_case, path)  # no ComplexWarning: complex data is an error
+        if error is not None:
+            event("npz rejected " + mutation)
+            return
         event("npz loaded " + mutation)
         if mutation == "none":  # a flipped byte may hit a time stamp or a zip field that is not checked
             assert all(a.dtype.kind in "iuf" and a.ndim == 1 for a in arrays.values()), arrays
@@ -207,26 +206,6 @@ def test_fuzzed_npz_loads_exactly_or_raises_a_data_error_naming_the_file(spec):
 
 
 # ---------------------------------------------------------------- suite.toml
-
-
-def toml_value(v):
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(v) if math.isfinite(v) else ("nan" if math.isnan(v) else ("inf" if v > 0 else "-inf"))
-    if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False)
-    if isinstance(v, list):
-        return "[" + ", ".join(toml_value(x) for x in v) + "]"
-    return "{" + ", ".join(f"{json.dumps(k)} = {toml_value(x)}" for k, x in v.items()) + "}"
-
-
-def toml_text(doc: dict) -> str:
-    """A minimal TOML writer for the fuzzed documents (tables as [sections], nested ones inline)."""
-    plain = [f"{json.dumps(k)} = {toml_value(v)}" for k, v in doc.items() if not isinstance(v, dict)]
-    tables = [f"[{json.dumps(k)}]\n" + "\n".join(f"{json.dumps(a)} = {toml_value(b)}" for a, b in v.items())
-              for k, v in doc.items() if isinstance(v, dict)]  # fmt: skip
-    return "\n".join(plain + tables) + "\n"
 
 
 scalars = st.one_of(st.text(max_size=8), st.integers(-5, 5), st.floats(allow_nan=True), st.booleans())
@@ -264,14 +243,10 @@ def test_fuzzed_suite_toml_loads_or_raises_a_data_error_naming_the_folder(doc):
         folder = Path(d)
         (folder / "a.csv").write_text("t,y,u,y2\n0,1,2,3\n0.5,1.5,2.5,3.5\n1,2,3,4\n")
         (folder / "suite.toml").write_text(toml_text(doc), encoding="utf-8")
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            try:
-                suite = load_suite(folder)
-            except DataError as exc:
-                assert str(folder) in str(exc)
-                event("toml rejected")
-                return
+        suite, error = load_or_error(load_suite, folder)
+        if error is not None:
+            event("toml rejected")
+            return
         event("toml loaded")
         case = suite[0]
         assert case.t.size == 3 and np.all(np.isfinite(case.Y))
