@@ -1,18 +1,27 @@
-"""Conformance benchmark: a 10-case synthetic vehicle suite (closed-loop bicycle, 8 s at 100 Hz).
+"""Conformance benchmark.
 
-Prints per case the time of the per-step trace conformance, of synthesis step 2
-(SCP with cvxpy) and of the alpha-search (10 reachability analyses + 1), then
-the whole synthesis serial vs ``workers=2``.  Goal: the whole synthesis of one
-8 s case under 10 s (the report: three hours of fmincon per case for step 2).
+1. A 10-case synthetic vehicle suite (closed-loop bicycle, 8 s at 100 Hz):
+   per case the time of the per-step trace conformance, of synthesis step 2
+   (the box SCP) and of the alpha-search (10 reachability analyses + 1), then
+   the whole synthesis serial vs ``workers=2``.  Goal: the whole synthesis of
+   one 8 s case under 10 s (the report: three hours of fmincon per case for
+   step 2).
+2. Native rate (:mod:`bench_native`): multi-body plant cases of 8–10 s at
+   100 Hz with ``bicycle`` and Table 5's V: Alg. 2 and box-SCP time per case
+   (goal: Alg. 2 under 5 s), the QP through cvxpy vs direct (same matrices),
+   memory per sample of trace and reachset conformance, and the
+   1,000,000-sample run (goal: under 2 GB and 10 min on 2 cores).
 
-Run: ``python benchmarks/bench_conformance.py [--cases 10]``
+Run: ``python benchmarks/bench_conformance.py [--cases 10] [--skip-synthesis] [--skip-million]``
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -25,7 +34,18 @@ from reachconf.reach import ReachOptions
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--cases", type=int, default=10)
+    ap.add_argument("--skip-synthesis", action="store_true", help="only the native-rate and long-recording figures")
+    ap.add_argument("--skip-million", action="store_true", help="without the 1,000,000-sample run (about 10 min)")
     args = ap.parse_args()
+    if not args.skip_synthesis:
+        synthesis_figures(args)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import bench_native
+
+    bench_native.main(million=not args.skip_million)
+
+
+def synthesis_figures(args):
     model = get_model("bicycle_closed_loop")
     with tempfile.TemporaryDirectory() as tmp:
         suite = make_demo_suite(tmp, n_cases=args.cases, seed=7, duration=8.0, rate=100.0)

@@ -29,6 +29,7 @@ from reachconf.errors import (
     OptionsError,
     ReachconfError,
     ReachError,
+    ResourceError,
     SetArgumentError,
     SetError,
     SolverError,
@@ -46,6 +47,7 @@ _LAZY = {
     "simulate": "reachconf.model.simulate",
     "reach": "reachconf.reach",
     "reach_run": "reachconf.reach",
+    "reach_streamed": "reachconf.reach_stream",
     "ReachOptions": "reachconf.reach_options",
     "ReachTube": "reachconf.tube",
     "models": "reachconf.models",
@@ -59,6 +61,7 @@ _LAZY = {
     "TraceOptions": "reachconf.conformance.trace",
     "TraceResult": "reachconf.conformance.trace",
     "minimal_trace_bounds": "reachconf.conformance.bounds",
+    "case_box": "reachconf.conformance.bounds",
     "reachset_conformance": "reachconf.conformance.reachset",
     "ReachsetResult": "reachconf.conformance.reachset",
     "synthesize_W": "reachconf.conformance.synthesis",
@@ -97,6 +100,7 @@ __all__ = [
     "ConformanceError",
     "SolverError",
     "OptionsError",
+    "ResourceError",
     *_LAZY,
 ]
 

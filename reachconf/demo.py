@@ -25,6 +25,7 @@ from reachconf.conformance.reachset import reachset_conformance
 from reachconf.conformance.synthesis import synthesize_W
 from reachconf.conformance.trace import trace_conformance
 from reachconf.datasets.vehicle_campaign.maneuvers import lane_change
+from reachconf.errors import OptionsError
 from reachconf.io.atomic import atomic_write
 from reachconf.io.cases import TestCase, TestSuite
 from reachconf.io.files import save_suite
@@ -35,7 +36,8 @@ from reachconf.plot import save_figure
 from reachconf.runfile import load_run
 from reachconf.sets.core import Interval
 
-__all__ = ["W_TRUE", "V_TRUE", "lane_change_reference", "make_demo_suite", "run_demo", "demo_run_file"]
+__all__ = ["W_TRUE", "V_TRUE", "lane_change_reference", "weaving_reference", "make_demo_suite", "make_long_case",
+           "run_demo", "demo_run_file"]
 
 #: disturbance box used to generate the demo data (per ODE of the closed-loop bicycle)
 W_TRUE = Interval([-0.05, -0.05, -0.01, -0.1, -0.1, -0.05], [0.05, 0.05, 0.01, 0.1, 0.1, 0.05])
@@ -57,6 +59,56 @@ def lane_change_reference(t, v=10.0, width=3.5, start=5.0, length=30.0):
     psi = np.arctan(dY)
     kappa = ddY / (1 + dY**2) ** 1.5
     return np.column_stack([s, Y, psi, np.full_like(t, v), kappa])
+
+
+def weaving_reference(t, v=10.0, width=3.5, length=30.0, gap=20.0):
+    """Reference of lane changes back and forth without end (for long recordings), shape (K, 5).
+
+    Every ``2 (length + gap)`` metres: straight for ``gap``, a lane change to
+    the left over ``length`` (the profile of :func:`lane_change_reference`),
+    straight for ``gap``, back over ``length``.
+    """
+    t = np.asarray(t, dtype=float)
+    s = v * t
+    ph = np.mod(s, 2 * (length + gap))
+    Y1, dY1, ddY1 = lane_change(ph, gap, length, width)
+    Y2, dY2, ddY2 = lane_change(ph, 2 * gap + length, length, width)
+    Y, dY, ddY = Y1 - Y2, dY1 - dY2, ddY1 - ddY2
+    psi = np.arctan(dY)
+    kappa = ddY / (1 + dY**2) ** 1.5
+    return np.column_stack([s, Y, psi, np.full_like(t, v), kappa])
+
+
+def make_long_case(samples: int, rate: float = 100.0, seed: int = 0, name: str | None = None,
+                   maneuver: str = "weaving"):  # fmt: skip
+    """A long recording of the closed-loop bicycle (the demo's model, W and V).
+
+    ``samples`` samples at ``rate`` Hz; disturbances uniform in :data:`W_TRUE`
+    held for 0.1 s, measurement noise uniform in :data:`V_TRUE`; deterministic
+    for a given seed.  ``maneuver``: "weaving" (lane changes back and forth,
+    :func:`weaving_reference`) or "straight" (lane keeping on a straight road:
+    the controller tracks speed, not position, so the longitudinal position's
+    uncertainty grows without bound, and only on a straight road does it stay
+    out of the lateral loop — the setting in which a reach over hours stays
+    bounded).  Used by the long-recording tests and benchmarks.
+    """
+    model = get_model("bicycle_closed_loop")
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(samples)) / float(rate)
+    if maneuver == "weaving":
+        U = weaving_reference(t)
+    elif maneuver == "straight":
+        U = np.zeros((t.size, 5))
+        U[:, 0] = 10.0 * t
+        U[:, 3] = 10.0
+    else:
+        raise OptionsError(f"maneuver must be 'weaving' or 'straight', got {maneuver!r}")
+    hold = max(1, int(round(0.1 * rate)))
+    w = rng.uniform(W_TRUE.lo, W_TRUE.hi, size=(t.size // hold + 1, model.q)).repeat(hold, axis=0)[: t.size]
+    X = simulate(model, np.array([0.0, 0.0, 0.0, 10.0, 0.0, 0.0]), t, inputs=U, disturbances=w, substeps=4)
+    del w
+    X += rng.uniform(V_TRUE.lo, V_TRUE.hi, size=X.shape)
+    return TestCase(name or f"long_{samples}", "long", t, U, X, model.input_names, model.output_names)
 
 
 def make_demo_suite(folder, n_cases: int = 3, seed: int = 2026, duration: float = 4.0, rate: float = 50.0):

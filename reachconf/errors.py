@@ -18,6 +18,7 @@ __all__ = [
     "OptionsError",
     "SetArgumentError",
     "OutputError",
+    "ResourceError",
 ]
 
 
@@ -83,3 +84,7 @@ class OutputError(ReachconfError, OSError):
     Also an :class:`OSError`, so ``except OSError`` around file writing keeps
     working; the message names the path the user gave, never a temporary file.
     """
+
+
+class ResourceError(ReachconfError, MemoryError):
+    """A computation would need more memory or time than is available (raised before it starts)."""

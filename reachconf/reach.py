@@ -82,6 +82,13 @@ def _step_grid(samples: np.ndarray, time_step: float | None, scalar_horizon: boo
     return dts, t_start, sample_of_step, offsets
 
 
+def integration_steps(times, options=None) -> int:
+    """How many integration steps :func:`reach` takes over ``times`` with ``options`` (for memory estimates)."""
+    samples = _sample_times(times)
+    step = None if options is None else options.time_step
+    return int(_step_grid(samples, step, np.ndim(times) == 0)[0].size)
+
+
 def _input_table(model, inputs, samples, t_start, sample_of_step, per_step: bool) -> np.ndarray:
     """Known input of every step, shape (S, m)."""
     m = model.m
@@ -156,6 +163,16 @@ def _split(c: np.ndarray, G: np.ndarray, method: str):
         np.ascontiguousarray(cc + g / 2),
         np.ascontiguousarray(G_half),
     )
+
+
+def _push_halves(pending, options, splits, status, step, c_fail, G_fail, depth) -> bool:
+    """Split a set that failed at ``step`` into two pending branches, if allowed (returns whether it was)."""
+    if not (splits < options.max_splits and status in (3, 4, 2) and G_fail.shape[1] > 0):
+        return False
+    half_a, half_b = _split(np.asarray(c_fail), np.asarray(G_fail), options.split_method)
+    pending.append((step, *half_a, depth + 1))
+    pending.append((step, *half_b, depth + 1))
+    return True
 
 
 # ---------------------------------------------------------------------------
@@ -243,16 +260,26 @@ class ReachRun:
     monitored: bool  # every sample after the first was passed to the monitor (no split happened)
 
 
-def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None) -> ReachRun:
+def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None, stream=None,
+              chunk_steps=None) -> ReachRun:  # fmt: skip
     """The computation behind :func:`reach`, on raw arrays, optionally watched by a monitor.
 
-    Arguments as :func:`reach`, plus ``monitor``.
+    Arguments as :func:`reach`, plus ``monitor``, ``stream`` and ``chunk_steps``.
 
     ``monitor(samples, c, G, ng)``, if given, is called after every computed
     chunk of the unsplit reach with the indices of the sample times the chunk
     reached and their time-point sets (``c`` (J, n), ``G`` (J, n, gmax), ``ng``
     (J,) generators in use); a True return raises :class:`ReachStopped`.  After
     a split the monitor is no longer called (``monitored`` is then False).
+
+    Streaming (``stream`` given): the sets are not kept — memory does not
+    grow with the horizon.  After every computed chunk of every branch (also
+    after splits) ``stream(k0, k1, store, base)`` receives the sets of steps
+    ``k0 .. k1-1`` (at store index ``step - base``; ``chunk_steps`` steps per
+    chunk, default 500), and the monitor is called for every branch with a
+    fifth argument ``split`` (True once the set has been split: the sets are
+    then pieces of a union, and a measurement outside one piece is no
+    violation by itself).  ``branches`` is empty.
 
     Returns
     -------
@@ -291,16 +318,21 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None)
     algorithm = options.alg.kernel_code
     reduce_method = options.reduction_method.kernel_code
 
-    def new_store():
+    def new_store(size=S):
         return dict(
-            tp_c=np.zeros((S, n)),
-            tp_G=np.zeros((S, n, gmax)),
-            ti_c=np.zeros((S, n)),
-            ti_G=np.zeros((S, n, gmax)),
-            ng_tp=np.zeros(S, dtype=np.int64),
-            ng_ti=np.zeros(S, dtype=np.int64),
-            err=np.zeros((S, n)),
+            tp_c=np.zeros((size, n)),
+            tp_G=np.zeros((size, n, gmax)),
+            ti_c=np.zeros((size, n)),
+            ti_G=np.zeros((size, n, gmax)),
+            ng_tp=np.zeros(size, dtype=np.int64),
+            ng_ti=np.zeros(size, dtype=np.int64),
+            err=np.zeros((size, n)),
         )
+
+    if stream is not None:
+        return _reach_streamed(model, options, Z0, Wz, samples, step_offsets, t_start, dts, U, comp, third_iv, gmax,
+                               me, params, algorithm, order, reduce_method, new_store, monitor, stream,
+                               chunk_steps)  # fmt: skip
 
     sample_step = np.asarray(step_offsets, dtype=np.int64) - 1  # step ending at each sample (-1: sample 0)
     t0 = time.perf_counter()
@@ -343,13 +375,11 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None)
                 continue
             status, step, bad_state, bad_term, c_fail, G_fail = failed
             branches.append((start, step, store))
-            if splits < options.max_splits and status in (3, 4, 2) and G_fail.shape[1] > 0:
+            if _push_halves(pending, options, splits, status, step, c_fail, G_fail, depth):
                 splits += 1
-                half_a, half_b = _split(np.asarray(c_fail), np.asarray(G_fail), options.split_method)
-                pending.append((step, *half_a, depth + 1))
-                pending.append((step, *half_b, depth + 1))
                 continue
-            raise _reach_error(model, options, status, step, bad_state, bad_term, t_start, dts, store, comp, splits)
+            raise _reach_error(model, options, status, step, bad_state, bad_term, t_start, dts, store["err"][step],
+                               comp, splits)  # fmt: skip
     except KeyboardInterrupt:
         raise
     finally:
@@ -378,7 +408,65 @@ def _dummy_third():
     return _DUMMY
 
 
-def _reach_error(model, options, status, step, bad_state, bad_term, t_start, dts, store, comp, splits):
+def _reach_streamed(model, options, Z0, Wz, samples, step_offsets, t_start, dts, U, comp, third_iv, gmax, me, params,
+                    algorithm, order, reduce_method, new_store, monitor, stream, chunk_steps) -> ReachRun:  # fmt: skip
+    """:func:`reach_run` without keeping the sets: chunks of ``chunk_steps`` steps, handed to ``stream``."""
+    from reachconf_kernels import nonlinear as nl
+
+    S = dts.size
+    chunk = int(chunk_steps or 500)
+    sample_step = np.asarray(step_offsets, dtype=np.int64) - 1
+    store = new_store(chunk + 1)  # slot 0: the step before the chunk (its error bound seeds the next step)
+    t0 = time.perf_counter()
+    pending = [(0, np.array(Z0.center), np.array(Z0.generators), 0)]
+    splits = 0
+    bar = _progress(options.progress, S, f"reach {model.name}")
+    wc, WG = np.array(Wz.center), np.array(Wz.generators)
+    try:
+        while pending:
+            start, c, G, depth = pending.pop()
+            k = start
+            store["err"][0] = 0.0
+            while k < S:
+                stop = min(S, k + chunk)
+                base = k - 1 if k > 0 else 0
+                status, step, bad_state, bad_term, c_fail, G_fail = nl.reach_loop(
+                    c, G, U[base:stop], dts[base:stop], wc, WG, params,
+                    int(options.taylor_terms), comp.f, comp.jac, comp.hess, comp.hess_iv, third_iv,
+                    algorithm, order, float(options.zonotope_order), float(options.intermediate_order),
+                    float(options.error_order), reduce_method, int(options.max_error_iterations), me,
+                    float(options.rounding), k - base, stop - base,
+                    store["tp_c"], store["tp_G"], store["ti_c"], store["ti_G"],
+                    store["ng_tp"], store["ng_ti"], store["err"],
+                )  # fmt: skip
+                end = step + base
+                if bar is not None and depth == 0:
+                    bar.update(end - k)
+                if end > k:
+                    stream(k, end, store, base)
+                    if monitor is not None:
+                        js = np.nonzero((sample_step >= k) & (sample_step < end))[0]
+                        if js.size:
+                            st = sample_step[js] - base
+                            if monitor(js, store["tp_c"][st], store["tp_G"][st], store["ng_tp"][st], splits > 0):
+                                raise ReachStopped(int(js[0]))
+                if status != 0:
+                    if _push_halves(pending, options, splits, status, end, c_fail, G_fail, depth):
+                        splits += 1
+                        break
+                    raise _reach_error(model, options, status, end, bad_state, bad_term, t_start, dts,
+                                       store["err"][step], comp, splits)  # fmt: skip
+                # the last step's error bound seeds the next chunk (slot 0)
+                store["err"][0] = store["err"][stop - 1 - base]
+                c, G, k = np.ascontiguousarray(c_fail), np.ascontiguousarray(G_fail), stop
+    finally:
+        if bar is not None:
+            bar.close()
+    return ReachRun(samples, step_offsets, t_start, dts, Z0, Wz, [], splits, time.perf_counter() - t0, options,
+                     monitor is not None)  # fmt: skip
+
+
+def _reach_error(model, options, status, step, bad_state, bad_term, t_start, dts, err, comp, splits):
     t = float(t_start[step])
     where = f"at t = {t:.6g} s (step {step}, dt = {dts[step]:.3g} s)"
     if status == 1:
@@ -388,7 +476,6 @@ def _reach_error(model, options, status, step, bad_state, bad_term, t_start, dts
         return ReachError(msg, time=t, state=None, term="domain")
     state = model.state_names[bad_state] if 0 <= bad_state < model.n else None
     term = _TERMS.get(bad_term, "abstraction error")
-    err = store["err"][step]
     detail = f" in state {state!r} through the {term}" if state else ""
     size = f"; error bound there {err[bad_state]:.3g}" if state and np.isfinite(err[bad_state]) else ""
     hints = [f"a smaller time_step (now {dts[step]:.3g})"]

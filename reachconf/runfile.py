@@ -12,8 +12,8 @@ Example::
     X0 = [[...], ...]                  # optional; default eq. 67 (first sample ⊕ V)
     [reach]                            # ReachOptions fields
     time_step = 0.02
-    [trace]                            # TraceOptions fields, plus method = "perstep" | "optctrl"
-    method = "perstep"
+    [trace]                            # TraceOptions fields, plus method = "auto" | "perstep" | "optctrl"
+    method = "auto"
     [synthesis]                        # SynthesisOptions fields
     alpha_iterations = 10
     [diagnose]                         # reachconf diagnose: effects, holdout, fit_params, seed + DiagnoseOptions
@@ -35,7 +35,7 @@ import numpy as np
 
 from reachconf.checks import check_workers
 from reachconf.conformance.synthesis import SynthesisOptions
-from reachconf.conformance.trace import TraceOptions
+from reachconf.conformance.trace import METHODS, TraceOptions
 from reachconf.diagnose.effects import EFFECTS
 from reachconf.diagnose.fit import DiagnoseOptions
 from reachconf.errors import DataError, ReachconfError
@@ -169,9 +169,9 @@ def load_run(path) -> RunSpec:
     X0 = _interval(sets["X0"], model.n, f"{path}: sets.X0") if "X0" in sets else None
     reach_opts = _options(ReachOptions, _table(raw, "reach", str(path)), f"{path}: [reach]")
     trace_tab = _table(raw, "trace", str(path))
-    method = trace_tab.get("method", "perstep")
-    if not isinstance(method, str) or method not in ("perstep", "optctrl"):
-        raise DataError(f"{path}: trace.method must be 'perstep' or 'optctrl', got {method!r}")
+    method = trace_tab.get("method", "auto")
+    if not isinstance(method, str) or method not in METHODS:
+        raise DataError(f"{path}: trace.method must be one of {METHODS}, got {method!r}")
     trace_opts = _options(TraceOptions, trace_tab, f"{path}: [trace]", drop=("method",))
     synth_tab = _table(raw, "synthesis", str(path))
     if {"reach", "trace"} & set(synth_tab):

@@ -70,10 +70,15 @@ class ReachTube:
         Number of set splits that were needed.
     seconds : float
         Wall-clock time of the reach.
+    keep_every : int
+        1, or for a streamed reach (:func:`reachconf.reach_stream.reach_streamed`)
+        the spacing of the steps whose sets were kept; ``bounds()`` still covers
+        every step, ``at``/``contains`` only the kept times.
     """
 
     def __init__(self, times, time_point_sets, time_intervals, time_interval_sets, state_names,
-                 model=None, inputs=None, splits=0, seconds=0.0, meta=None):  # fmt: skip
+                 model=None, inputs=None, splits=0, seconds=0.0, meta=None, keep_every=1, step_bounds=None,
+                 all_times=None):  # fmt: skip
         self.times = np.asarray(times, dtype=float)
         self.time_point_sets = list(time_point_sets)
         self.time_intervals = np.asarray(time_intervals, dtype=float).reshape(-1, 2)
@@ -84,6 +89,9 @@ class ReachTube:
         self.splits = int(splits)
         self.seconds = float(seconds)
         self.meta = dict(meta or {})
+        self.keep_every = int(keep_every)
+        self.step_bounds = None if step_bounds is None else np.asarray(step_bounds, dtype=float)
+        self.all_times = self.times if all_times is None else np.asarray(all_times, dtype=float)
 
     # ----------------------------------------------------------- building
     @classmethod
@@ -143,6 +151,9 @@ class ReachTube:
         if abs(self.times[k] - t) <= tol:
             return self.time_point_sets[k]
         s = np.nonzero((self.time_intervals[:, 0] <= t + tol) & (self.time_intervals[:, 1] >= t - tol))[0]
+        if s.size == 0 and self.keep_every > 1 and self.all_times[0] - tol <= t <= self.all_times[-1] + tol:
+            raise ReachError(f"time {t}: this streamed tube keeps the sets of every {self.keep_every}th step only "
+                             "(its bounds() cover every step); use reachconf.reach for all sets")  # fmt: skip
         if s.size == 0:
             raise ReachError(f"time {t} is outside the tube [{self.times[0]}, {self.times[-1]}]")
         sets = [self.time_interval_sets[i] for i in s]
@@ -160,6 +171,9 @@ class ReachTube:
             splits=self.splits,
             seconds=self.seconds,
             meta=self.meta,
+            keep_every=self.keep_every,
+            step_bounds=None if self.step_bounds is None else self.step_bounds[:, :, idx],
+            all_times=self.all_times,
         )
 
     def interval_hull(self) -> Interval:
@@ -169,6 +183,8 @@ class ReachTube:
 
     def bounds(self) -> np.ndarray:
         """Interval hulls of the time-interval sets, shape (S, 2, n): ``[:, 0]`` lower, ``[:, 1]`` upper."""
+        if self.step_bounds is not None:
+            return self.step_bounds.copy()
         out = np.empty((len(self.time_interval_sets), 2, len(self.state_names)))
         for s, st in enumerate(self.time_interval_sets):
             iv = st.interval()
@@ -286,7 +302,11 @@ class ReachTube:
             arrays[f"{prefix}_G"] = G_arr
             arrays[f"{prefix}_ng"] = np.array([G.shape[1] for G in Gs])
             arrays[f"{prefix}_owner"] = np.array(owner)
-        arrays["meta"] = np.array(json.dumps({**self.meta, "splits": self.splits, "seconds": self.seconds}))
+        if self.step_bounds is not None:
+            arrays["step_bounds"] = self.step_bounds
+            arrays["all_times"] = self.all_times
+        arrays["meta"] = np.array(json.dumps({**self.meta, "splits": self.splits, "seconds": self.seconds,
+                                              "keep_every": self.keep_every}))  # fmt: skip
         buf = io.BytesIO()
         np.savez_compressed(buf, **arrays)
         return atomic_write(path, buf.getvalue())
@@ -307,11 +327,13 @@ class ReachTube:
                     pieces[int(k)].append(Zonotope(c, G[:, : int(ng)]))
                 sets[prefix] = [p[0] if len(p) == 1 else SetUnion(p) for p in pieces]
             meta = json.loads(str(data["meta"]))
+            extra = {k: data[k] for k in ("step_bounds", "all_times") if k in data.files}
         except (KeyError, ValueError, OSError) as exc:
             raise DataError(f"{path}: not a reachconf tube file ({exc})") from None
         return cls(data["times"], sets["tp"], data["time_intervals"], sets["ti"],
                    [str(s) for s in data["state_names"]], splits=meta.pop("splits", 0),
-                   seconds=meta.pop("seconds", 0.0), meta=meta)  # fmt: skip
+                   seconds=meta.pop("seconds", 0.0), keep_every=meta.pop("keep_every", 1), meta=meta,
+                   **extra)  # fmt: skip
 
     def __repr__(self):
         return (f"ReachTube({len(self.times)} sample times from {self.times[0]:g} to {self.times[-1]:g} s, "

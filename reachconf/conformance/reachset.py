@@ -3,29 +3,33 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import linprog
 
 from reachconf.checks import check_options
+from reachconf.budget import TimeBudget, check_memory
 from reachconf.errors import ConformanceError, ReachError
 from reachconf.io.cases import case_arrays
 from reachconf.io.results import JsonResult
 from reachconf.plot import plot_measured
 from reachconf.model.core import require_model
 from reachconf.model.outputs import affine_output, output_enclosure, output_index_of_states, state_estimate
-from reachconf.reach import ReachStopped, reach_run
+from reachconf.reach import ReachStopped, integration_steps, reach_run
 from reachconf.reach_options import ReachOptions
+from reachconf.reach_stream import streamed_bytes_per_step
 from reachconf.sets.containment import contains_points_lp
 from reachconf.sets.convert import as_box
 from reachconf.sets.core import Interval, Zonotope
+from reachconf.sets.union import SetUnion
 from reachconf.tube import ReachTube
 from reachconf.verdict import Verdict
 from reachconf_kernels.containment import contains_mapped_sequence
 from reachconf_kernels.zonotope import from_interval
 
-__all__ = ["ReachsetResult", "reachset_conformance", "initial_set"]
+__all__ = ["ReachsetResult", "reachset_conformance", "initial_set", "StreamChecker", "reach_plan",
+           "reach_bytes_per_step", "reach_step_count"]
 
 
 @dataclass
@@ -172,8 +176,10 @@ def initial_set(model, case, V) -> Interval | Zonotope:
     )
 
 
-def _distance(S: Zonotope, y: np.ndarray) -> float:
-    """Infinity-norm distance from ``y`` to the zonotope (an LP)."""
+def _distance(S, y: np.ndarray) -> float:
+    """Infinity-norm distance from ``y`` to the zonotope (an LP); to the nearest piece of a union."""
+    if isinstance(S, SetUnion):
+        return min(_distance(piece, y) for piece in S)
     c, G = S.center, S.generators
     n, m = G.shape
     # min s  s.t. |G b - (y - c)| <= s, |b| <= 1
@@ -188,7 +194,9 @@ def _distance(S: Zonotope, y: np.ndarray) -> float:
 
 
 def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bool = True,
-                         violation_distance: bool = True, stop_at_first_violation: bool = False) -> ReachsetResult:  # fmt: skip
+                         violation_distance: bool = True, stop_at_first_violation: bool = False,
+                         progress: bool | None = None, max_distance_samples: int = 2000,
+                         time_limit: float | None = None) -> ReachsetResult:  # fmt: skip
     """Eq. 43: is every measurement ``Y(t_i)`` in ``h(REACH(X0, u, t_i)) ⊕ V``?
 
     Parameters
@@ -204,14 +212,23 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
     options : ReachOptions, optional
         Default: time step = sample spacing.
     keep_tube : bool
-        Keep the reach tube in the result (set False to save memory).
+        Keep the reach tube in the result.  False streams the reach: the sets
+        are checked chunk by chunk as they are computed and dropped, with the
+        state set carried from chunk to chunk, so memory does not grow with
+        the length of the case (a few bytes per sample: the verdicts).
     violation_distance : bool
-        Compute ``max_violation`` (one LP per violating sample).
+        Compute ``max_violation`` (one LP per violating sample; when
+        streaming, for the first ``max_distance_samples`` of them).
     stop_at_first_violation : bool
         Stop the reachability analysis at the first measurement outside its
         set (only the verdict and ``first_violation_time`` are wanted: the
-        α-search of eq. 68).  Needs an affine output map and ``V`` as a box;
-        ignored with ``keep_tube`` or ``violation_distance``.
+        α-search of eq. 68); ignored with ``keep_tube`` or ``violation_distance``
+        and once the set has been split.
+    progress : bool or None
+        Progress bar of the reach (default: long reaches on a terminal).
+    time_limit : float or None
+        Seconds (streamed reach only): stop with ResourceError once the
+        projected duration, measured on the first 2 % of the steps, exceeds it.
 
     Returns
     -------
@@ -219,9 +236,12 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
         A reach that fails (the set explodes) gives ``verdict=UNDECIDED``
         (``conformant=False``) with the reason in ``message``: a failed reach
         never counts as conformant, nor as a violation.
-        With an affine output map and a box ``V`` the measurements are checked
-        along the reach by one compiled kernel (the same certified test as
-        :meth:`Zonotope.contains`); otherwise set by set.
+
+    Raises
+    ------
+    ResourceError
+        Before any work, when ``keep_tube`` would need more memory than is
+        available (pass ``keep_tube=False``).
     """
     t0 = time.perf_counter()
     require_model(model, "reachset_conformance")
@@ -230,34 +250,54 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
     name = getattr(case, "name", "case")
     if X0 is None:
         X0 = initial_set(model, case, V)
+    if progress is not None:
+        options = replace(options, progress=progress)
     Vb = as_box(V, model.p, "V")
     V_lo, V_hi = Vb.lo, Vb.hi
     Vset = Interval(V_lo, V_hi)
-    aff = affine_output(model)
-    stop = bool(stop_at_first_violation and not keep_tube and not violation_distance)
-    checker = _SequenceChecker(aff, U if model.m else np.zeros((t.size, 0)), Y, V_lo, V_hi, stop) if aff else None
-    if checker is not None:
-        checker.check_first(X0)
     inputs = U if model.m else None
+    per_step, fixed = reach_bytes_per_step(model, options, keep_tube)
+    steps = reach_step_count(t, options)
+    check_memory(f"reachset conformance of case {name!r}", steps, per_step, fixed,
+                 hint="pass keep_tube=False (the CLI does) to stream the reach" if keep_tube else "")  # fmt: skip
+    if not keep_tube:
+        checker = StreamChecker(model, U if model.m else np.zeros((t.size, 0)), Y, V_lo, V_hi,
+                                stop_at_first_violation and not violation_distance, violation_distance,
+                                max_distance_samples)  # fmt: skip
+        try:
+            if checker.check_first(X0):
+                raise ReachStopped(0)
+            budget = TimeBudget(f"reachset conformance of case {name!r}", time_limit, min_fraction=0.02)
+            reach_run(model, X0, t - t[0], inputs=inputs, W=W, options=options, monitor=checker,
+                      stream=lambda k0, k1, store, base: budget.check(k1, steps))  # fmt: skip
+        except ReachError as exc:
+            return ReachsetResult(name, False, float(t[0] + (exc.time or 0.0)), float("inf"), checker.inside,
+                                  None, time.perf_counter() - t0, str(exc), {}, t, Y, model.output_names,
+                                  Verdict.UNDECIDED)  # fmt: skip
+        except ReachStopped:
+            first = int(np.nonzero(checker.status == 0)[0][0])
+            return ReachsetResult(name, False, float(t[first]), float("nan"), checker.inside, None,
+                                  time.perf_counter() - t0, "", {}, t, Y, model.output_names)  # fmt: skip
+        inside = checker.inside
+        bad = np.nonzero(~inside)[0]
+        violations = {float(t[k]): d for k, d in checker.distances.items() if not inside[k]}
+        worst = max(violations.values()) if violations else (float("nan") if bad.size else 0.0)
+        message = ""
+        if bad.size and violation_distance and bad.size > len(violations):
+            message = f"distances computed for the first {len(violations)} of {bad.size} violating samples"
+        return ReachsetResult(name, not bad.size, float(t[bad[0]]) if bad.size else None, worst, inside, None,
+                              time.perf_counter() - t0, message, violations, t, Y, model.output_names)  # fmt: skip
+    checker = StreamChecker(model, U if model.m else np.zeros((t.size, 0)), Y, V_lo, V_hi, False)
+    checker.check_first(X0)
     try:
-        if checker is not None and checker.stopped:
-            raise ReachStopped(0)
-        run = reach_run(model, X0, t - t[0], inputs=inputs, W=W, options=options,
-                         monitor=checker)  # fmt: skip
+        run = reach_run(model, X0, t - t[0], inputs=inputs, W=W, options=options, monitor=checker)
     except ReachError as exc:
         return ReachsetResult(name, False, float(t[0] + (exc.time or 0.0)), float("inf"), np.zeros(t.size, bool),
                               None, time.perf_counter() - t0, str(exc), {}, t, Y, model.output_names,
                               Verdict.UNDECIDED)  # fmt: skip
-    except ReachStopped:
-        inside = checker.status == 1
-        first = int(np.nonzero(checker.status == 0)[0][0])
-        return ReachsetResult(name, False, float(t[first]), float("nan"), inside, None,
-                              time.perf_counter() - t0, "", {}, t, Y, model.output_names)  # fmt: skip
-    tube = None
-    if keep_tube or checker is None or not run.monitored or violation_distance:
-        tube = ReachTube.from_run(run, model)
-    if checker is not None and run.monitored:
-        inside = checker.status == 1
+    tube = ReachTube.from_run(run, model)
+    if run.monitored:  # every sample was checked as the sets were computed (no split)
+        inside = checker.inside
     else:
         inside = tube.contains(t - t[0], Y, V=Vset, output=True, inputs=inputs).inside
     bad = np.nonzero(~inside)[0]
@@ -270,41 +310,125 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
             violations[float(t[k])] = dist
             worst = max(worst, dist)
     first = float(t[bad[0]]) if bad.size else None
-    return ReachsetResult(name, not bad.size, first, worst, inside, tube if keep_tube else None,
-                          time.perf_counter() - t0, "", violations, t, Y, model.output_names)  # fmt: skip
+    return ReachsetResult(name, not bad.size, first, worst, inside, tube, time.perf_counter() - t0, "",
+                          violations, t, Y, model.output_names)  # fmt: skip
+
+
+def reach_step_count(t, options) -> int:
+    """Integration steps of a reach over the sample times ``t`` (as :func:`reachconf.reach.reach` makes them)."""
+    return integration_steps(np.asarray(t, dtype=float) - float(t[0]), options)
+
+
+def reach_bytes_per_step(model, options, keep_tube) -> tuple[float, float]:
+    """Memory estimate of a reach: ``(bytes per integration step, fixed bytes)``.
+
+    Kept tube: two zonotopes per step (time point and time interval) of at
+    most ``n (order + 1) + 1`` generators, in the kernel's arrays and again as
+    set objects.  Streamed: the per-sample verdicts and inputs; fixed: one
+    chunk of 500 steps.
+    """
+    n = model.n
+    gmax = int(n * max(options.zonotope_order, 1.0)) + n + 1
+    per_set = 8.0 * n * (gmax + 2)
+    if keep_tube:
+        return 2 * 2 * per_set + 8 * (model.m + 4 * n), 64e6
+    return 8.0 * (model.m + 3) + 2, 501 * 2 * per_set + 64e6
+
+
+def reach_plan(model, options, case, stream_bytes: float) -> bool:
+    """Pre-flight of a reach over ``case``: True if its tube must be streamed (it needs more than ``stream_bytes``).
+
+    Raises :class:`~reachconf.errors.ResourceError` (before any work) if even
+    the chosen way needs more memory than is available.
+    """
+    steps = reach_step_count(case.t, options)
+    per, fixed = reach_bytes_per_step(model, options, True)
+    stream = steps * per + fixed > stream_bytes
+    if stream:
+        check_memory(f"reach of case {case.name!r}", steps, streamed_bytes_per_step(model), 256e6)
+    else:
+        check_memory(f"reach of case {case.name!r}", steps, per, fixed)
+    return stream
+
+
+class StreamChecker:
+    """Monitor of a streamed reach: eq. 43 sample by sample as the sets are computed (union-aware).
+
+    A sample is inside when some piece of the (possibly split) reachable set
+    at its time, enlarged by V, contains its measurement.  Affine output
+    maps use the compiled sequence kernel; others the mean-value enclosure of
+    :func:`reachconf.model.outputs.output_enclosure` per sample.
+    """
+
+    def __init__(self, model, U, Y, V_lo, V_hi, stop, distances=False, max_distances=2000):
+        self.model = model
+        self.aff = affine_output(model)
+        self.U = U
+        self.Y = np.ascontiguousarray(Y, dtype=float)
+        self.V = Interval(V_lo, V_hi)
+        self.stop = stop
+        self.want_distances = distances
+        self.max_distances = int(max_distances)
+        self.status = np.full(Y.shape[0], -2, dtype=np.int8)  # -2 unchecked, 0 outside (so far), 1 inside
+        self.distances = {}
+        self.seq = _SequenceChecker(self.aff, U, Y, V_lo, V_hi) if self.aff is not None else None
+
+    @property
+    def inside(self):
+        return self.status == 1
+
+    def _piece_status(self, js, c, G, ng):
+        if self.seq is not None:
+            return self.seq.decide(js, c, G, ng)
+        st = np.zeros(js.size, dtype=np.int64)
+        for i, k in enumerate(js):
+            Z = Zonotope(c[i], G[i][:, : ng[i]])
+            S = output_enclosure(self.model, Z, self.U[k] if self.model.m else None) + self.V.to_zonotope()
+            st[i] = int(bool(S.contains(self.Y[k])))
+        return st
+
+    def _distance(self, k, c, G, ng):
+        Z = Zonotope(c, G[:, :ng])
+        S = output_enclosure(self.model, Z, self.U[k] if self.model.m else None) + self.V.to_zonotope()
+        return _distance(S, self.Y[k])
+
+    def check_first(self, X0):
+        Z = X0.to_zonotope()
+        G = np.asarray(Z.generators, dtype=float)
+        return self(np.array([0]), np.asarray(Z.center, dtype=float)[None, :], G[None, :, :],
+                    np.array([G.shape[1]], dtype=np.int64), False)  # fmt: skip
+
+    def __call__(self, js, c, G, ng, split=False):
+        st = self._piece_status(js, c, G, ng)
+        now_in = st == 1
+        prev = self.status[js]
+        self.status[js] = np.where(now_in | (prev == 1), 1, 0)
+        if self.want_distances:
+            for i in np.nonzero(~now_in & (prev != 1))[0]:
+                k = int(js[i])
+                if k in self.distances or len(self.distances) < self.max_distances:
+                    d = self._distance(k, c[i], G[i], ng[i])
+                    self.distances[k] = min(d, self.distances.get(k, np.inf))
+        return bool(self.stop and not split and np.any(~now_in))
 
 
 class _SequenceChecker:
-    """Monitor of :func:`reachconf.reach.reach_run`: eq. 43 for each chunk of time-point sets (compiled)."""
+    """Eq. 43 for a chunk of time-point sets with an affine output map (one compiled kernel call)."""
 
-    def __init__(self, aff, U, Y, V_lo, V_hi, stop):
+    def __init__(self, aff, U, Y, V_lo, V_hi):
         C, D, e = aff
         cv, Gv = from_interval(np.ascontiguousarray(V_lo, dtype=float), np.ascontiguousarray(V_hi, dtype=float))
         self.C = np.ascontiguousarray(C, dtype=float)
         self.off = np.ascontiguousarray(U @ D.T + e + cv)
         self.v_rad = np.ascontiguousarray(np.sum(np.abs(Gv), axis=1))
         self.Y = np.ascontiguousarray(Y, dtype=float)
-        self.stop = stop
-        self.status = np.full(Y.shape[0], -2, dtype=np.int64)
-        self.stopped = False
 
-    def _decide(self, js, c, G, ng):
+    def decide(self, js, c, G, ng):
+        """Per sample ``js[i]``: 1 if its measurement is in ``C Z_i + off ⊕ V``, else 0 (compiled, LP fallback)."""
         st = contains_mapped_sequence(np.ascontiguousarray(c), np.ascontiguousarray(G), np.ascontiguousarray(ng),
-                                      self.C, self.off[js], self.v_rad, self.Y[js], 1e-9, self.stop)  # fmt: skip
+                                      self.C, self.off[js], self.v_rad, self.Y[js], 1e-9, False)  # fmt: skip
         for i in np.nonzero(st == -1)[0]:  # no certificate: the reference LP
             Gi = np.hstack([self.C @ G[i][:, : ng[i]], np.diag(self.v_rad)[:, self.v_rad > 0]])
             ci = self.C @ c[i] + self.off[js[i]]
             st[i] = int(contains_points_lp(ci, Gi, self.Y[js[i]][None, :], 1e-9)[0])
-        self.status[js] = st
-        if self.stop and np.any(st == 0):
-            self.stopped = True
-        return self.stopped
-
-    def check_first(self, X0):
-        Z = X0.to_zonotope()
-        G = np.asarray(Z.generators, dtype=float)
-        self._decide(np.array([0]), np.asarray(Z.center, dtype=float)[None, :], G[None, :, :],
-                     np.array([G.shape[1]], dtype=np.int64))  # fmt: skip
-
-    def __call__(self, js, c, G, ng):
-        return self._decide(js, c, G, ng)
+        return st

@@ -23,9 +23,9 @@ import numpy as np
 
 from reachconf.checks import check_field_types, check_options, check_workers
 from reachconf.conformance.alpha import alpha_search
-from reachconf.conformance.bounds import minimize_box
+from reachconf.conformance.bounds import minimize_box, step1_trace
 from reachconf.conformance.reachset import reachset_conformance
-from reachconf.conformance.trace import TraceOptions, trace_disturbances
+from reachconf.conformance.trace import TraceOptions
 from reachconf.errors import OptionsError
 from reachconf.io.cases import suite_cases
 from reachconf.io.results import JsonResult
@@ -77,6 +77,12 @@ class SynthesisOptions:
         box verified by either is reachset conformant.
     trace : TraceOptions or None
         Options of the trace-conformance steps.
+    step1_method : {"auto", "perstep", "optctrl"}, default "auto"
+        DISTURBANCETRACE of step 1: the per-step fit of eqs. 62–66 (no
+        measurement errors), Alg. 2 (the trace within V of least eq. 36 cost,
+        W unbounded), or "auto": the per-step trace where it stays within V,
+        else Alg. 2's (noisy measurements at a high rate make the per-step
+        trace drift out of V; step 2 then starts from a trace within V).
     """
 
     alpha_iterations: int = 10
@@ -88,9 +94,12 @@ class SynthesisOptions:
     reach: object = None
     reach_fallback: object = None
     trace: TraceOptions | None = None
+    step1_method: str = "auto"
 
     def __post_init__(self):
         check_field_types(self)
+        if self.step1_method not in ("auto", "perstep", "optctrl"):
+            raise OptionsError(f"step1_method must be 'auto', 'perstep' or 'optctrl', got {self.step1_method!r}")
         if int(self.alpha_iterations) != self.alpha_iterations or self.alpha_iterations < 1:
             raise OptionsError(f"alpha_iterations must be a positive integer, got {self.alpha_iterations!r}")
         mi = self.merge_iterations
@@ -142,6 +151,8 @@ class CaseSynthesis:
     trace_conformant: bool = False
     message: str = ""
     alpha_trials: list = field(default_factory=list)
+    step1_method: str = ""
+    step1_reason: str = ""
     verdict: Verdict | None = None
 
     def __post_init__(self):
@@ -154,7 +165,8 @@ class CaseSynthesis:
                 "conformant": self.verdict.json_conformant,
                 "trace_conformant": self.trace_conformant, "seconds": self.seconds,
                 "step_seconds": self.step_seconds, "message": self.message,
-                "alpha_trials": self.alpha_trials}  # fmt: skip
+                "alpha_trials": self.alpha_trials, "step1_method": self.step1_method,
+                "step1_reason": self.step1_reason}  # fmt: skip
 
     @classmethod
     def from_dict(cls, d: dict) -> "CaseSynthesis":
@@ -164,6 +176,7 @@ class CaseSynthesis:
                    bool(d["conformant"]), float(d["seconds"]), dict(d.get("step_seconds", {})),
                    bool(d.get("trace_conformant", False)), d.get("message", ""),
                    [tuple(x) if isinstance(x, list) else x for x in d.get("alpha_trials", [])],
+                   d.get("step1_method", ""), d.get("step1_reason", ""),
                    Verdict(d.get("verdict", Verdict.of(bool(d["conformant"])))))  # fmt: skip
 
 
@@ -303,7 +316,7 @@ def _synth_case(job) -> CaseSynthesis:
     steps = {}
     t0 = time.perf_counter()
     case12 = case.decimate(options.step2_decimate)
-    start = trace_disturbances(model, case12, method="perstep", V=V, options=topts)
+    start, step1_reason = step1_trace(model, case12, V, options.step1_method, topts)
     W_TC = start.disturbance_box()
     steps["step1"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -346,7 +359,7 @@ def _synth_case(job) -> CaseSynthesis:
                                   f"violation at t = {res.first_violation_time})")  # fmt: skip
     steps["step3"] = time.perf_counter() - t0
     return CaseSynthesis(case.name, case.group, W_TC, W_opt, W_RC, alpha, ok, time.perf_counter() - t_start, steps,
-                         trace_ok, message, trials, verdict)  # fmt: skip
+                         trace_ok, message, trials, start.method, step1_reason, verdict)  # fmt: skip
 
 
 def _early_exit_check(model, members, Vbox, options, run_batch, batch, order, failed=None):

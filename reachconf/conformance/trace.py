@@ -11,27 +11,38 @@ line 3) and computes the measurement errors from the simulated states (line
 conformant"), never the reverse.  The IVP is integrated with RK4 at two step
 sizes; the difference (an estimate of the integration error) is subtracted
 from the measurement-error margins.
+
+``method="auto"`` (the default): the per-step fit where its simulated trace
+stays within W and V, Alg. 2 where it does not.  Cases are processed in
+windows (:mod:`reachconf.conformance.windows`): any length runs in bounded
+memory and linear time; the result records the method used, per window, and
+why.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from reachconf.budget import TimeBudget, check_memory
 from reachconf.checks import check_field_types, check_options
-from reachconf.conformance.optctrl import NO_TRACE, optctrl_trace
-from reachconf.errors import ConformanceError, OptionsError
+from reachconf.conformance.windows import (
+    describe_violation,
+    disturbance_trace_in_windows,
+    keep_step,
+    summarize_windows,
+    verdict_in_windows,
+)
+from reachconf.errors import OptionsError
 from reachconf.io.cases import case_arrays
 from reachconf.io.results import JsonResult
 from reachconf.model.core import require_model
-from reachconf.model.outputs import affine_output, evaluate_outputs, output_index_of_states, state_estimate
-from reachconf.model.simulate import simulate
+from reachconf.model.outputs import state_estimate
 from reachconf.sets.convert import as_box
 from reachconf.sets.core import Interval
 from reachconf.verdict import Verdict
-from reachconf_kernels.tracefit import perstep_fit
 
 __all__ = [
     "TraceOptions",
@@ -41,7 +52,12 @@ __all__ = [
     "simulate_verdict",
     "state_estimate",
     "case_arrays",
+    "trace_bytes_per_sample",
+    "METHODS",
 ]
+
+#: DISTURBANCETRACE methods of :func:`trace_conformance`
+METHODS = ("auto", "perstep", "optctrl")
 
 
 @dataclass(frozen=True)
@@ -72,7 +88,18 @@ class TraceOptions:
     trust_region : float, default 1.0
         Bound on the state change per QP iteration, in units of the state scale.
     solver : str or None, default None
-        cvxpy solver (None: Clarabel, then OSQP).
+        cvxpy solver of the dense reference formulation (unused by the sparse QPs, which call Clarabel).
+    window : int, default 2000
+        Samples per window: DISTURBANCETRACE and the verdict run window by
+        window, carrying the state, so that memory stays bounded and time
+        linear in the length of a case (a case of up to ``window + overlap``
+        samples is one window: 20 s at 100 Hz).
+    overlap : int, default 200
+        Samples of look-ahead of an Alg. 2 window beyond the part it keeps.
+    keep_samples : int, default 100000
+        At most this many samples of the state and measurement-error traces
+        are kept in the result (every ``trace_step``-th sample); the
+        disturbance trace (the certificate) and margins are always complete.
     """
 
     objective: str = "absolute"
@@ -84,6 +111,9 @@ class TraceOptions:
     subdivision: int = 1
     trust_region: float = 1.0
     solver: str | None = None
+    window: int = 2000
+    overlap: int = 200
+    keep_samples: int = 100_000
 
     def __post_init__(self):
         check_field_types(self)
@@ -91,7 +121,11 @@ class TraceOptions:
             raise OptionsError(f"TraceOptions.objective must be 'absolute' or 'relative', got {self.objective!r}")
         if self.anchor not in ("auto", "measured", "simulated"):
             raise OptionsError(f"TraceOptions.anchor must be 'auto', 'measured' or 'simulated', got {self.anchor!r}")
-        for name in ("substeps", "gauss_newton_iterations", "max_iterations", "subdivision"):
+        if not (isinstance(self.overlap, (int, np.integer)) and self.overlap >= 0):
+            raise OptionsError(f"TraceOptions.overlap must be a non-negative integer, got {self.overlap!r}")
+        if not (isinstance(self.window, (int, np.integer)) and self.window >= 10):
+            raise OptionsError(f"TraceOptions.window must be an integer >= 10, got {self.window!r}")
+        for name in ("substeps", "gauss_newton_iterations", "max_iterations", "subdivision", "keep_samples"):
             v = getattr(self, name)
             if not (isinstance(v, (int, np.integer)) and v >= 1):
                 raise OptionsError(f"TraceOptions.{name} must be a positive integer, got {v!r}")
@@ -110,19 +144,26 @@ class TraceResult(JsonResult):
     conformant : bool
         True only if the simulated trace satisfies eqs. 22–24 with margin.
     x0 : ndarray (n,)
-    X : ndarray (K, n)
-        Simulated states (the IVP solution, Alg. 1 line 3).
+    X : ndarray (K', n)
+        Simulated states (the IVP solution, Alg. 1 line 3) at every
+        ``trace_step``-th sample (all of them unless the case is longer than
+        ``TraceOptions.keep_samples``).
     W_trace : ndarray (K-1, q)
         Disturbance on each sample interval (``(K-1) r`` rows with subdivision r).
-    V_trace : ndarray (K, p)
-        Measurement errors ``Y - h(X, U)`` (Alg. 1 line 4).
+    V_trace : ndarray (K', p)
+        Measurement errors ``Y - h(X, U)`` (Alg. 1 line 4), at the samples of ``X``.
     margins : dict
         Channel (disturbance or output name) -> smallest distance to the
         bound over the trace (negative where the bound is violated; output
         margins already reduced by the integration-error estimate).
     method : str
+        DISTURBANCETRACE used: ``"perstep (measured|simulated)"``,
+        ``"optctrl"`` (Alg. 2), or for ``method="auto"`` on a long case the
+        count of windows of each.
     seconds : float
     message : str
+        Alg. 2's convergence and, when not conformant, where the simulated
+        trace leaves W or V (channel, time, by how much).
     integration_error : ndarray (p,)
         Estimated integration error of the simulated outputs.
     disturbance_names, output_names : tuple of str
@@ -133,6 +174,16 @@ class TraceResult(JsonResult):
         report's verdict, though another trace might exist), or ``UNDECIDED``
         (no trace to judge: the simulation diverged or Alg. 2's QP found no
         trace; ``message`` says why).
+    reason : str
+        Why that method (``method="auto"``: the per-step trace stayed within
+        W and V, or where it left them).
+    margin_times : dict
+        Channel -> time of its smallest margin.
+    trace_step : int
+        ``X`` and ``V_trace`` hold every ``trace_step``-th sample.
+    error_bounds : (ndarray, ndarray) or None
+        Interval hull of the measurement errors over every sample.
+    windows : list of (first sample, last sample, method)
     """
 
     case: str
@@ -150,6 +201,11 @@ class TraceResult(JsonResult):
     disturbance_names: tuple = ()
     output_names: tuple = ()
     verdict: Verdict | None = None
+    reason: str = ""
+    margin_times: dict = field(default_factory=dict)
+    trace_step: int = 1
+    error_bounds: tuple | None = None
+    windows: list = field(default_factory=list)
 
     def __post_init__(self):
         self.verdict = Verdict.of(self.conformant) if self.verdict is None else Verdict(self.verdict)
@@ -159,8 +215,22 @@ class TraceResult(JsonResult):
         return Interval(self.W_trace.min(axis=0), self.W_trace.max(axis=0))
 
     def error_box(self) -> Interval:
-        """Interval hull of the measurement-error trace."""
+        """Interval hull of the measurement-error trace (over every sample)."""
+        if self.error_bounds is not None:
+            return Interval(*self.error_bounds)
         return Interval(self.V_trace.min(axis=0), self.V_trace.max(axis=0))
+
+    @property
+    def t_kept(self) -> np.ndarray:
+        """Sample times of ``X`` and ``V_trace``."""
+        return self.t[:: self.trace_step]
+
+    def worst(self):
+        """``(channel, time, margin)`` of the smallest margin (negative: where the trace leaves W or V)."""
+        if not self.margins:
+            return None
+        ch = min(self.margins, key=self.margins.get)
+        return ch, self.margin_times.get(ch), float(self.margins[ch])
 
     def to_dict(self) -> dict:
         """The verdict, margins and boxes, and the traces themselves (``t``, ``X``, ``W_trace``, ``V_trace``).
@@ -173,33 +243,43 @@ class TraceResult(JsonResult):
             "verdict": self.verdict,
             "conformant": self.verdict.json_conformant,
             "method": self.method,
+            "reason": self.reason,
             "seconds": float(self.seconds),
             "message": self.message,
             "x0": self.x0.tolist(),
             "margins": {k: float(v) for k, v in self.margins.items()},
+            "margin_times": {k: float(v) for k, v in self.margin_times.items()},
             "W_box": [[float(a), float(b)] for a, b in zip(*_box_lists(self.W_trace))],
-            "V_box": [[float(a), float(b)] for a, b in zip(*_box_lists(self.V_trace))],
+            "V_box": [[float(a), float(b)] for a, b in zip(*(self.error_bounds or _box_lists(self.V_trace)))],
             "disturbance_names": list(self.disturbance_names),
             "output_names": list(self.output_names),
             "t": self.t.tolist(),
+            "trace_step": int(self.trace_step),
             "X": self.X.tolist(),
             "W_trace": self.W_trace.tolist(),
             "V_trace": self.V_trace.tolist(),
             "integration_error": None if self.integration_error is None else self.integration_error.tolist(),
+            "windows": [list(w) for w in self.windows],
         }
 
     @classmethod
     def from_dict(cls, d: dict) -> "TraceResult":
         """The result from :meth:`to_dict`."""
         t = np.asarray(d["t"], dtype=float)
-        X = np.asarray(d["X"], dtype=float).reshape(t.size, -1)
+        x0 = np.asarray(d["x0"], dtype=float)
+        X = np.asarray(d["X"], dtype=float).reshape(-1, x0.size)
         q, p = len(d["disturbance_names"]), len(d["output_names"])
         ie = d.get("integration_error")
-        return cls(d["case"], t, bool(d["conformant"]), np.asarray(d["x0"], dtype=float), X,
+        vb = d.get("V_box")
+        return cls(d["case"], t, bool(d["conformant"]), x0, X,
                    np.asarray(d["W_trace"], dtype=float).reshape(-1, q), np.asarray(d["V_trace"], dtype=float).reshape(-1, p),
                    {k: np.nan if v is None else float(v) for k, v in d["margins"].items()}, d["method"], float(d["seconds"]), d["message"],
                    None if ie is None else np.asarray(ie, dtype=float), tuple(d["disturbance_names"]),
-                   tuple(d["output_names"]), Verdict(d.get("verdict", Verdict.of(bool(d["conformant"])))))  # fmt: skip
+                   tuple(d["output_names"]), Verdict(d.get("verdict", Verdict.of(bool(d["conformant"])))),
+                   d.get("reason", ""), dict(d.get("margin_times", {})),
+                   int(d.get("trace_step", 1)),
+                   None if not vb else (np.array([a for a, _ in vb]), np.array([b for _, b in vb])),
+                   [tuple(w) for w in d.get("windows", [])])  # fmt: skip
 
     def plot(self, ax=None, model=None):
         """Disturbance and measurement-error traces over time (two axes); returns them.
@@ -225,7 +305,7 @@ class TraceResult(JsonResult):
         for i in range(q):
             axes[0].step(tw, self.W_trace[:, i], where="post", label=names_w[i], lw=0.8)
         for i in range(p):
-            axes[1].plot(self.t, self.V_trace[:, i], label=names_v[i], lw=0.8)
+            axes[1].plot(self.t_kept, self.V_trace[:, i], label=names_v[i], lw=0.8)
         axes[0].set_ylabel("disturbance w")
         axes[1].set_ylabel("measurement error v")
         axes[1].set_xlabel("t [s]")
@@ -241,38 +321,17 @@ def _box_lists(A):
     return A.min(axis=0), A.max(axis=0)
 
 
-# ---------------------------------------------------------------------------
-# data plumbing
-# ---------------------------------------------------------------------------
-def _weights(model, Yx, V_lo, V_hi, objective):
-    """Weights of the per-step residual components (per step, per state)."""
-    K, n = Yx.shape
-    if objective == "relative":
-        if np.any(Yx[1:] == 0):
-            raise ConformanceError("objective='relative' (eq. 27) needs measurements that are never zero")
-        return 1.0 / Yx[1:] ** 2
-    direct = output_index_of_states(model)
-    scale = np.ptp(Yx, axis=0)
-    if direct is not None:
-        vrad = 0.5 * (V_hi - V_lo)[direct]
-        scale = np.where(vrad > 0, vrad, scale)
-    scale = np.where(scale > 0, scale, 1.0)
-    return np.tile(1.0 / scale**2, (K - 1, 1))
-
-
-# ---------------------------------------------------------------------------
-# IVP and verdict (Alg. 1, lines 3-5)
-# ---------------------------------------------------------------------------
 def simulate_verdict(model, case_name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, substeps, method, t0,
-                     message="", search_failed=False) -> TraceResult:  # fmt: skip
+                     message="", search_failed=False, keep_samples: int = 100_000) -> TraceResult:  # fmt: skip
     """Alg. 1, lines 3-5: simulate a candidate trace and judge it against the bounds (eqs. 22-24).
 
     The model is simulated from ``x0`` with the disturbance trace ``Wt`` (RK4 at
     ``substeps`` and twice that; the difference is the integration-error
-    estimate), the measurement errors ``Y - h(X, U)`` are computed from the
-    simulated states, and every disturbance and output margin must be
-    non-negative, the outputs' after subtracting the integration error.  The
-    verdict rests on this simulation only, so it is never wrongly "conformant".
+    estimate; window by window, carrying both states), the measurement errors
+    ``Y - h(X, U)`` are computed from the simulated states, and every
+    disturbance and output margin must be non-negative, the outputs' after
+    subtracting the integration error.  The verdict rests on this simulation
+    only, so it is never wrongly "conformant".
 
     Parameters
     ----------
@@ -281,8 +340,8 @@ def simulate_verdict(model, case_name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, 
     t, U, Y : ndarray
         The case's arrays (``TestCase.case_arrays``).
     x0 : ndarray (n,)
-    Wt : ndarray (K-1, q)
-        Candidate disturbance trace.
+    Wt : ndarray ((K-1) r, q)
+        Candidate disturbance trace (``r`` per sample interval).
     W_lo, W_hi, V_lo, V_hi : ndarray
         The boxes (``-inf``/``inf`` for unbounded).
     substeps : int
@@ -294,55 +353,48 @@ def simulate_verdict(model, case_name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, 
     search_failed : bool
         DISTURBANCETRACE found no trace (Alg. 2's QP failed): a trace that
         then misses the bounds gives ``UNDECIDED``, not ``NOT_CONFORMANT``.
+    keep_samples : int
+        At most this many samples of the state and error traces are kept.
 
     Returns
     -------
     TraceResult
+        When not conformant, ``message`` says where the trace leaves W or V.
     """
-    X, xerr = simulate(model, x0, t, U, Wt, substeps, error_estimate=True, check=False)
-    Vt = Y - evaluate_outputs(model, X, U)
-    # integration error mapped to the outputs (first order, through |dh/dx|)
-    aff = affine_output(model)
-    if aff is not None:
-        yerr = xerr @ np.abs(aff[0]).T
-    else:
-        yerr = np.max(xerr, axis=1, keepdims=True) * np.ones((1, model.p)) * 10.0
-    margins = {}
-    ok = True
-    for i, name in enumerate(model.disturbance_names):
-        m = float(np.min(np.minimum(Wt[:, i] - W_lo[i], W_hi[i] - Wt[:, i]))) if Wt.size else 0.0
-        margins[name] = m
-        ok &= m >= 0
-    for i, name in enumerate(model.output_names):
-        key = name if name not in margins else f"v:{name}"
-        m = float(np.min(np.minimum(Vt[:, i] - yerr[:, i] - V_lo[i], V_hi[i] - Vt[:, i] - yerr[:, i])))
-        margins[key] = m
-        ok &= m >= 0
-    finite = bool(np.all(np.isfinite(X)))
-    ok = ok and finite
-    if not finite:
+    K = t.size
+    r = max(1, Wt.shape[0] // max(1, K - 1))
+    step = keep_step(K, keep_samples)
+    v = verdict_in_windows(model, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, substeps, r, keep_every=step,
+                           progress=False)  # fmt: skip
+    ok = v.finite and all(m >= 0 for m in v.margin.values())
+    if not v.finite:
         message = (message + "; " if message else "") + "the simulated trace diverged (NaN/inf)"
-    verdict = Verdict.of(ok, undecided=not ok and (not finite or search_failed))
-    return TraceResult(case_name, t, bool(ok), x0, X, Wt, Vt, margins, method, time.perf_counter() - t0,
-                       message, yerr.max(axis=0), model.disturbance_names, model.output_names, verdict)  # fmt: skip
+    elif not ok:
+        worst = min(v.margin, key=v.margin.get)
+        where = describe_violation(model, worst, v.margin[worst], v.margin_time[worst], W_lo, W_hi, V_lo, V_hi)
+        message = (message + "; " if message else "") + f"the simulated trace {where}"
+    verdict = Verdict.of(ok, undecided=not ok and (not v.finite or search_failed))
+    return TraceResult(case_name, t, bool(ok), np.array(x0, dtype=float), v.X, Wt, v.V, v.margin, method,
+                       time.perf_counter() - t0, message, v.yerr, model.disturbance_names, model.output_names,
+                       verdict, margin_times=v.margin_time, trace_step=step, error_bounds=(v.v_lo, v.v_hi))  # fmt: skip
 
 
-# ---------------------------------------------------------------------------
-# DISTURBANCETRACE, section 3.2.1
-# ---------------------------------------------------------------------------
-def _perstep(model, t, U, Y, V_lo, V_hi, options, case):
-    Yx = state_estimate(model, case)
-    anchor = options.anchor
-    if anchor == "auto":
-        anchor = "measured" if model.q >= model.n else "simulated"
-    if model.q == 0:
-        return Yx[0].copy(), np.zeros((t.size - 1, 0)), anchor
-    weights = np.ascontiguousarray(_weights(model, Yx, V_lo, V_hi, options.objective))
-    W0 = np.zeros((t.size - 1, model.q))
-    comp = model.compiled()
-    Wt, _ = perstep_fit(comp.f, Yx, Yx, np.ascontiguousarray(U[:-1]), np.diff(t), model.param_vector, weights, W0,
-                        int(options.substeps), int(options.gauss_newton_iterations), anchor == "simulated")  # fmt: skip
-    return Yx[0].copy(), Wt, anchor
+def trace_bytes_per_sample(model, options, method) -> tuple[float, float]:
+    """Memory estimate of trace conformance: ``(bytes per sample, fixed bytes)``.
+
+    Per sample: the case copies (t, U, Y), the state estimate and the
+    disturbance trace.  Fixed: the kept traces and the working arrays of one
+    window (Alg. 2's QP dominates: about 6 KB per window sample for the
+    vehicle models with Clarabel).
+    """
+    n, m, q, p = model.n, model.m, model.q, model.p
+    r = int(options.subdivision) if method != "perstep" else 1
+    per = 8.0 * (2 * (1 + m + p) + 2 * n + 2 * q * r + 2)
+    window = int(options.window) + int(options.overlap)
+    qp = 0.0 if method == "perstep" else window * r * 700.0 * (n + q)
+    work = window * r * 8.0 * (12 * n + 4 * p + 4 * q + n * (n + q) * 3)
+    kept = 2 * 8.0 * options.keep_samples * (n + p + 1)
+    return per, qp + work + kept + 64e6
 
 
 def trace_disturbances(model, case, method: str = "perstep", V=None, options: TraceOptions | None = None):
@@ -354,8 +406,9 @@ def trace_disturbances(model, case, method: str = "perstep", V=None, options: Tr
     return trace_conformance(model, case, None, V, method=method, options=options, _unbounded=True)
 
 
-def trace_conformance(model, case, W, V, method: str = "perstep", options: TraceOptions | None = None,
-                      _unbounded: bool = False) -> TraceResult:  # fmt: skip
+def trace_conformance(model, case, W, V, method: str = "auto", options: TraceOptions | None = None,
+                      _unbounded: bool = False, progress: bool | None = None,
+                      time_limit: float | None = None) -> TraceResult:  # fmt: skip
     """Alg. 1: is the model with disturbance set ``W`` and measurement-error set ``V`` trace conformant?
 
     Parameters
@@ -363,22 +416,37 @@ def trace_conformance(model, case, W, V, method: str = "perstep", options: Trace
     model : Model
     case : TestCase
     W, V : Interval or Zonotope (their interval hulls are used), or None for ``{0}``
-    method : {"perstep", "optctrl"}
-        DISTURBANCETRACE by the per-step fit (section 3.2.1, eqs. 25–27) or by
-        the optimal-control QP (Alg. 2, eqs. 29–41).
+    method : {"auto", "perstep", "optctrl"}, default "auto"
+        DISTURBANCETRACE by the per-step fit (section 3.2.1, eqs. 25–27), by
+        the optimal-control QP (Alg. 2, eqs. 29–41), or "auto": the per-step
+        fit where its simulated trace stays within W and V, Alg. 2 where not
+        (``result.method`` and ``result.reason`` say which and why).
     options : TraceOptions
+        ``window``/``overlap``: long cases run window by window in bounded
+        memory and linear time (:mod:`reachconf.conformance.windows`).
+    progress : bool or None
+        Progress bar (default: for cases of 50,000 samples or more).
+    time_limit : float or None
+        Seconds; the run stops with :class:`~reachconf.errors.ResourceError`
+        after the first window if its projected duration is longer.
 
     Returns
     -------
     TraceResult
+
+    Raises
+    ------
+    ResourceError
+        Before any work, if the case needs more memory than is available.
     """
-    t0 = time.perf_counter()
+    t_start = time.perf_counter()
     where = "trace_disturbances" if _unbounded else "trace_conformance"
     require_model(model, where)
     options = check_options(options, TraceOptions, where)
-    if not isinstance(method, str) or method not in ("perstep", "optctrl"):
-        raise OptionsError(f"{where}: method must be 'perstep' or 'optctrl', got {method!r}")
+    if not isinstance(method, str) or method not in METHODS:
+        raise OptionsError(f"{where}: method must be one of {METHODS}, got {method!r}")
     t, U, Y = case_arrays(model, case)
+    name = getattr(case, "name", "case")
     if _unbounded:
         W_lo, W_hi = np.full(model.q, -np.inf), np.full(model.q, np.inf)
     else:
@@ -386,11 +454,22 @@ def trace_conformance(model, case, W, V, method: str = "perstep", options: Trace
         W_lo, W_hi = Wb.lo, Wb.hi
     Vb = as_box(V, model.p, "V")
     V_lo, V_hi = Vb.lo, Vb.hi
-    name = getattr(case, "name", "case")
-    if method == "perstep":
-        x0, Wt, anchor = _perstep(model, t, U, Y, V_lo, V_hi, options, case)
-        return simulate_verdict(model, name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, options.substeps,
-                                f"perstep ({anchor})", t0)  # fmt: skip
-    x0, Wt, message = optctrl_trace(model, t, U, Y, W_lo, W_hi, V_lo, V_hi, options, case)
-    return simulate_verdict(model, name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, options.substeps, "optctrl", t0,
-                            message, search_failed=NO_TRACE in message)  # fmt: skip
+    per, fixed = trace_bytes_per_sample(model, options, method)
+    check_memory(f"trace conformance of case {name!r}", t.size, per, fixed,
+                 hint="Split the recording (TestCase.segment) or lower TraceOptions.window")  # fmt: skip
+    try:
+        Yx = state_estimate(model, case)
+    except Exception:  # the states cannot be read from the outputs: Alg. 2 only
+        if method == "perstep":
+            raise
+        Yx = None
+    budget = TimeBudget(f"trace conformance of case {name!r}", time_limit)
+    x0, Wt, info = disturbance_trace_in_windows(model, t, U, Y, Yx, W_lo, W_hi, V_lo, V_hi, options, method,
+                                                progress=progress, budget=budget)  # fmt: skip
+    label, reason, message, search_failed = summarize_windows(info, method)
+    res = simulate_verdict(model, name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, options.substeps, label, t_start,
+                           message, search_failed=search_failed, keep_samples=options.keep_samples)  # fmt: skip
+    res.reason = reason
+    res.windows = [tuple(w[:3]) for w in info["windows"]]
+    return res
+

@@ -113,13 +113,14 @@ def _split(prepared, holdout, seed):
 
 
 def _box(model, cases, V, opts):
-    """Hull of the per-case minimal W boxes (SCP of synthesis step 2), or None if the SCP fails."""
+    """Hull of the per-case minimal W boxes (SCP of synthesis step 2, best effort: the base model may admit no
+    trace at all), or None if the SCP fails."""
     los, his = [], []
     try:
         for c in cases:
-            r = case_box(model, c, V, "optctrl", "W", TraceOptions())
-            los.append(r[0])
-            his.append(r[1])
+            r = case_box(model, c, V, "optctrl", "W", TraceOptions(), certify=False)
+            los.append(r.lo)
+            his.append(r.hi)
     except (ReachconfError, np.linalg.LinAlgError, ValueError):
         return None
     return np.min(los, axis=0), np.max(his, axis=0)
@@ -130,7 +131,7 @@ def _vbox(model, cases):
         rs = [case_box(model, c, None, "perstep", "V", TraceOptions()) for c in cases]
     except (ReachconfError, np.linalg.LinAlgError, ValueError):
         return None
-    return np.min([r[0] for r in rs], axis=0), np.max([r[1] for r in rs], axis=0)
+    return np.min([r.lo for r in rs], axis=0), np.max([r.hi for r in rs], axis=0)
 
 
 def _decimated(model, fit, cases, k, segment=None):

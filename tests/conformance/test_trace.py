@@ -113,13 +113,13 @@ def test_minimal_trace_bounds_beat_true_box(model, suite):
     checks "inside W*" on a model whose channels are all well excited.)
     """
     from reachconf.conformance.bounds import case_box
-    from reachconf.conformance.trace import TraceOptions as TO
 
     box = rc.minimal_trace_bounds(model, suite, V=V_SET, method="optctrl")
     for case in suite:
         assert trace_conformance(model, case, box, V_SET, method="optctrl").conformant
         scale = np.ptp(trace_disturbances(model, case).W_trace, axis=0)
-        lo, hi = case_box(model, case, V_SET, "optctrl", "W", TO())[:2]
+        found = case_box(model, case, V_SET, "optctrl")
+        lo, hi = found.lo, found.hi
         assert np.sum((hi - lo) / scale) <= np.sum((W_STAR.hi - W_STAR.lo) / scale) * 1.01
         assert np.all(lo >= box.lo) and np.all(hi <= box.hi)
 

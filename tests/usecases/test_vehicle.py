@@ -24,7 +24,7 @@ def _width(pairs):
 
 def test_output_contract(quick):
     run, out, res = quick
-    for key in ("table3", "table4", "table6", "table8", "timings"):
+    for key in ("table3", "table4", "table3_10hz", "table4_10hz", "table6", "table8", "timings"):
         assert key in res
     assert set(res["table6"]) == {"LC_2", "SW_2"}
     for g, W in res["table6"].items():
@@ -32,9 +32,23 @@ def test_output_contract(quick):
         assert W.shape == (6, 2) and np.all(W[:, 0] <= W[:, 1]) and np.all(np.isfinite(W))
         assert (out / f"tube_{g}.png").stat().st_size > 10_000
     assert set(res["table8"]) == {"open_loop", "closed_loop"}
-    for step in ("identification", "table3", "table4", "table6", "figures", "table8", "after_campaign"):
+    for step in ("identification", "table3", "table4", "table3_10hz", "table4_10hz", "table6", "figures", "table8",
+                 "after_campaign"):
         assert res["timings"][step] >= 0
     assert "Table 6" in (out / "vehicle.md").read_text()
+
+
+def test_tables_3_and_4_at_100_hz_are_verified_on_every_sample(quick):
+    """The 100 Hz box of Table 3 explains every 100 Hz sample (Alg. 1 again, default method), 10 Hz alike."""
+    run, out, res = quick
+    model = rc.models.bicycle(**res["bicycle_parameters"])
+    suite = rc.load_suite(out / "campaign_quick")
+    for key, dec in (("table3", 1), ("table3_10hz", 10)):
+        box = rc.Interval(*np.asarray(res[key]["all"]).T)
+        assert sum(sum(m.values()) for m in res[key + "_methods"].values()) == len(suite)
+        for case in suite:
+            c = case.select(("ax", "delta"), model.output_names).decimate(dec)
+            assert rc.trace_conformance(model, c, box, run.box(run.V_TABLE3)).conformant, (key, case.name)
 
 
 def test_identified_parameters_are_near_the_plant(quick):
@@ -85,7 +99,7 @@ def test_full_run(tmp_path):
     res = json.loads((tmp_path / "vehicle.json").read_text())
     assert len(res["table6"]) == 8
     assert sum(res["table6_conformant"].values()) >= 7  # all but DLC_4 (see README)
-    for key in ("table3", "table4"):
+    for key in ("table3", "table4", "table3_10hz", "table4_10hz"):
         assert not any(isinstance(v, str) for v in res[key].values()), key
 
 

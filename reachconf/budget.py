@@ -1,0 +1,123 @@
+"""Pre-flight checks of memory and time for long computations.
+
+Long recordings are processed in windows, so what a run needs grows by a
+known number of bytes per sample (what the result keeps) plus a fixed amount
+per window.  :func:`check_memory` compares that estimate with the memory
+available to this process (``MemAvailable`` of ``/proc/meminfo`` and, in a
+container, the cgroup limit) *before* the work starts and raises
+:class:`~reachconf.errors.ResourceError` naming the case, the estimate and
+what to change — instead of an abort (``std::bad_alloc``, ``MemoryError``)
+halfway through.  :class:`TimeBudget` does the same for a time limit: it
+projects the whole run from the first window and stops before the rest.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+from reachconf.errors import ResourceError
+
+__all__ = ["available_memory", "check_memory", "TimeBudget", "format_bytes"]
+
+
+def format_bytes(n: float) -> str:
+    """``1536 -> '1.5 KB'`` (powers of 1024)."""
+    n = float(n)
+    for unit in ("B", "KB", "MB", "GB"):
+        if abs(n) < 1024 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024
+    return f"{n:.1f} GB"  # pragma: no cover
+
+
+def _cgroup_free() -> float | None:
+    for limit, used in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+                        ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes")):  # fmt: skip
+        try:
+            with open(limit) as fh:
+                text = fh.read().strip()
+            if text == "max":
+                return None
+            with open(used) as fh:
+                cur = float(fh.read().strip())
+            lim = float(text)
+            if lim > 2**60:  # "no limit" in cgroup v1
+                return None
+            return max(0.0, lim - cur)
+        except (OSError, ValueError):
+            continue
+    return None
+
+
+def available_memory() -> float:
+    """Bytes this process can still allocate (``REACHCONF_MEMORY_LIMIT`` overrides, in bytes)."""
+    env = os.environ.get("REACHCONF_MEMORY_LIMIT")
+    if env:
+        try:
+            return float(env)
+        except ValueError:
+            raise ResourceError(f"REACHCONF_MEMORY_LIMIT must be a number of bytes, got {env!r}") from None
+    free = None
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    free = float(line.split()[1]) * 1024
+                    break
+    except OSError:
+        pass
+    if free is None:
+        try:
+            free = float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+        except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
+            free = float("inf")
+    cg = _cgroup_free()
+    return min(free, cg) if cg is not None else free
+
+
+def check_memory(what: str, samples: int, per_sample: float, fixed: float = 0.0, hint: str = "") -> float:
+    """Raise :class:`ResourceError` if ``samples * per_sample + fixed`` bytes exceed the available memory.
+
+    Returns the estimate (bytes).  ``what`` names the job (``"trace conformance of case X"``).
+    """
+    need = float(samples) * float(per_sample) + float(fixed)
+    free = available_memory()
+    if need > 0.9 * free:
+        raise ResourceError(
+            f"{what}: {samples:,} samples need about {format_bytes(need)} ({format_bytes(per_sample)} per sample"
+            f" + {format_bytes(fixed)}), but only {format_bytes(free)} is available; nothing was computed"
+            + (f". {hint}" if hint else "")
+        )
+    return need
+
+
+class TimeBudget:
+    """Stop a windowed run early when its projected duration exceeds ``limit`` seconds.
+
+    ``check(done, total)`` after each window: once at least ``min_fraction`` of
+    the work (or the first window) is done, the duration so far is
+    extrapolated linearly (the windows cost the same per sample) and a
+    :class:`ResourceError` is raised if the projection exceeds the limit.
+    """
+
+    def __init__(self, what: str, limit: float | None, min_fraction: float = 0.0):
+        self.what = what
+        self.limit = None if limit is None else float(limit)
+        self.start = time.perf_counter()
+        self.min_fraction = float(min_fraction)
+        self.checked = False
+
+    def check(self, done: float, total: float):
+        if self.limit is None or self.checked or total <= 0 or done <= 0:
+            return
+        if done / total < self.min_fraction and done < total:
+            return
+        self.checked = True
+        spent = time.perf_counter() - self.start
+        projected = spent * total / done
+        if projected > self.limit:
+            raise ResourceError(
+                f"{self.what}: projected {projected:,.0f} s for {total:,.0f} samples (measured {spent:.1f} s on the "
+                f"first {done:,.0f}) exceeds the time limit of {self.limit:,.0f} s; stopped before the rest"
+            )

@@ -1,0 +1,99 @@
+"""Reachability of long horizons in bounded memory: :func:`reach_streamed`.
+
+:func:`reachconf.reach` keeps every reachable set (two zonotopes per step:
+about 12 KB per step for six states at zonotope order 20).  For recordings of
+hours that is more than a machine has.  :func:`reach_streamed` runs the same
+sound analysis chunk by chunk, carrying the state set from chunk to chunk, and
+keeps
+
+* the interval hull of every time-interval set (``ReachTube.bounds()``,
+  ``2 n`` numbers per step), and
+* the sets themselves of every ``keep_every``-th step and sample only (at
+  most ``max_sets`` of each), enough for pictures.
+
+The returned :class:`~reachconf.ReachTube` says so (``tube.keep_every``); its
+``contains``/``at`` refuse times whose sets were not kept.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+from reachconf.budget import TimeBudget
+from reachconf.reach import integration_steps, reach_run
+from reachconf.sets.core import Zonotope
+from reachconf.sets.union import SetUnion
+from reachconf.tube import ReachTube
+
+__all__ = ["reach_streamed", "streamed_bytes_per_step"]
+
+
+def streamed_bytes_per_step(model) -> float:
+    """Memory per integration step of :func:`reach_streamed`: the bounds, the step grid and the inputs."""
+    return 8.0 * (2 * model.n + 4 + 2 * model.m)
+
+
+def reach_streamed(model, X0, times, inputs=None, W=None, options=None, max_sets: int = 2000, monitor=None,
+                   time_limit: float | None = None):  # fmt: skip
+    """:func:`reachconf.reach` in bounded memory (see the module docstring).
+
+    Parameters
+    ----------
+    model, X0, times, inputs, W, options
+        As :func:`reachconf.reach`.
+    max_sets : int
+        At most this many time-point and time-interval sets are kept.
+    monitor : callable, optional
+        ``monitor(samples, c, G, ng, split)`` for every chunk (see
+        :func:`reachconf.reach.reach_run`).
+    time_limit : float, optional
+        Seconds; stops with :class:`~reachconf.errors.ResourceError` once the
+        projected duration (from the first 2 % of the steps) exceeds it.
+
+    Returns
+    -------
+    ReachTube
+        With every step's interval hull and every ``tube.keep_every``-th set.
+    """
+    S = integration_steps(times, options)
+    keep_every = max(1, math.ceil(S / max(1, int(max_sets))))
+    n = model.n
+    bounds = np.empty((S, 2, n))
+    bounds[:, 0] = np.inf
+    bounds[:, 1] = -np.inf
+    ti_kept, tp_kept = {}, {}
+    budget = TimeBudget(f"reach of model {model.name!r}", time_limit, min_fraction=0.02)
+
+    def collect(k0, k1, store, base):
+        sl = slice(k0 - base, k1 - base)
+        rad = np.abs(store["ti_G"][sl]).sum(axis=2)  # generators beyond ng are zero
+        lo, hi = store["ti_c"][sl] - rad, store["ti_c"][sl] + rad
+        bounds[k0:k1, 0] = np.minimum(bounds[k0:k1, 0], lo)
+        bounds[k0:k1, 1] = np.maximum(bounds[k0:k1, 1], hi)
+        first = k0 + (-k0) % keep_every
+        for k in range(first, k1, keep_every):  # at most max_sets steps in all
+            i = k - base
+            ti_kept.setdefault(k, []).append(_set(store["ti_c"][i], store["ti_G"][i], store["ng_ti"][i]))
+            tp_kept.setdefault(k, []).append(_set(store["tp_c"][i], store["tp_G"][i], store["ng_tp"][i]))
+        budget.check(k1, S)
+
+    run = reach_run(model, X0, times, inputs, W, options, monitor=monitor, stream=collect)
+    one = lambda pieces: pieces[0] if len(pieces) == 1 else SetUnion(pieces)  # noqa: E731
+    steps = np.array(sorted(ti_kept), dtype=np.int64)
+    # the kept time-point sets are those at sample times whose step was kept
+    sample_step = np.asarray(run.step_offsets, dtype=np.int64) - 1
+    kept_samples = [0] + [j for j in range(1, run.samples.size) if int(sample_step[j]) in tp_kept]
+    tp_sets = [run.X0] + [one(tp_kept[int(sample_step[j])]) for j in kept_samples[1:]]
+    intervals = np.column_stack([run.t_start[steps], run.t_start[steps] + run.dts[steps]]) if steps.size else np.zeros((0, 2))
+    options_json = json.loads(json.dumps(run.options.__dict__, default=str))  # inf -> "inf", tuples -> lists
+    meta = {"model": model.name, "options": options_json, "streamed": True, "steps": int(S)}
+    return ReachTube(run.samples[kept_samples], tp_sets, intervals, [one(ti_kept[int(k)]) for k in steps],
+                     model.state_names, model=model, splits=run.splits, seconds=run.seconds, meta=meta,
+                     keep_every=keep_every, step_bounds=bounds, all_times=run.samples)  # fmt: skip
+
+
+def _set(c, G, ng):
+    return Zonotope.from_kernel(np.array(c, dtype=np.float64), np.ascontiguousarray(G[:, :ng], dtype=np.float64))
