@@ -109,6 +109,7 @@ class TimeBudget:
         self.checked = False
 
     def check(self, done: float, total: float):
+        """Project the run from ``done`` of ``total`` units of work; raise ResourceError if over the limit."""
         if self.limit is None or self.checked or total <= 0 or done <= 0:
             return
         if done / total < self.min_fraction and done < total:

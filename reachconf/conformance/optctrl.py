@@ -143,11 +143,13 @@ class TraceQP:
 
     # ------------------------------------------------------------------ pieces
     def simulate(self, x0, W):
+        """States on the grid from ``x0`` with the disturbance trace ``W`` (RK4, ``substeps`` per interval)."""
         Wf = np.ascontiguousarray(np.vstack([W, W[-1:]])) if W.shape[0] else np.zeros((self.tf.size, 0))
         return rk4_trace(self.model.compiled().f, np.ascontiguousarray(x0, dtype=float), self.Uf, Wf, self.tf,
                          self.model.param_vector, self.substeps)  # fmt: skip
 
     def outputs(self, X):
+        """``h(x, u)`` at the sample stages of the grid."""
         return evaluate_outputs(self.model, X[self.idx], self.Uf[self.idx])
 
     def output_jacobians(self, X):
@@ -318,6 +320,7 @@ class TraceQP:
         return P, c, A, b, n_eq, (nx, nw, nb)
 
     def solve(self, X, W, mode, **kw):
+        """Build (:meth:`build`) and solve the QP with Clarabel; ``(status, DX, DW, box)`` in the model's units."""
         P, c, A, b, n_eq, (nx, nw, nb) = self.build(X, W, mode, **kw)
         status, z = solve_sparse_qp(P, c, A, b, n_eq)
         if z is None:

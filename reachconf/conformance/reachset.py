@@ -375,6 +375,7 @@ class StreamChecker:
 
     @property
     def inside(self):
+        """Per sample: inside some piece of its set (False for samples not checked)."""
         return self.status == 1
 
     def _piece_status(self, js, c, G, ng):
@@ -393,6 +394,7 @@ class StreamChecker:
         return _distance(S, self.Y[k])
 
     def check_first(self, X0):
+        """Check the first sample against the initial set; True if a stop was asked for and it is outside."""
         Z = X0.to_zonotope()
         G = np.asarray(Z.generators, dtype=float)
         return self(np.array([0]), np.asarray(Z.center, dtype=float)[None, :], G[None, :, :],
