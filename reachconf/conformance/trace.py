@@ -88,7 +88,8 @@ class TraceOptions:
     trust_region : float, default 1.0
         Bound on the state change per QP iteration, in units of the state scale.
     solver : str or None, default None
-        cvxpy solver of the dense reference formulation (unused by the sparse QPs, which call Clarabel).
+        Ignored; kept so that run files setting it still load.  The QPs are
+        solved by the Riccati kernel and Clarabel (no modelling layer).
     window : int, default 2000
         Samples per window: DISTURBANCETRACE and the verdict run window by
         window, carrying the state, so that memory stays bounded and time
