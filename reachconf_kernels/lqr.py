@@ -1,7 +1,7 @@
 """Riccati recursion of a linear-quadratic optimal-control problem with affine dynamics (small dense blocks).
 
 The Newton step of the interior-point method in :mod:`reachconf_kernels.ocp_ipm`
-is the problem
+is the problem::
 
     min  sum_j 1/2 x_j' Hx_j x_j + gx_j' x_j + 1/2 w_j' Hw_j w_j + gw_j' w_j
     s.t. x_{j+1} = A_j x_j + B_j w_j + f_j,   x_0 free or fixed

@@ -1,6 +1,6 @@
 """Interior-point solver for the banded QP of Alg. 2 (a discrete-time optimal-control problem).
 
-The linearised problem of Alg. 2 (eqs. 29–41), in scaled variables, is
+The linearised problem of Alg. 2 (eqs. 29–41), in scaled variables, is::
 
     min  sum_j 1/2 x_j' diag(qx) x_j  +  1/2 w_j' diag(rw) w_j + rl_j' w_j
     s.t. x_{j+1} = A_j x_j + B_j w_j + f_j                 (eqs. 30–32)

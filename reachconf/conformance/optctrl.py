@@ -2,7 +2,7 @@
 
 Both problems — Alg. 2's disturbance trace (eqs. 29–41, cost eq. 36) and
 synthesis step 2's smallest box — are, around a consistent trace (simulated
-states ``X`` for disturbances ``W``), convex problems on the linearised dynamics
+states ``X`` for disturbances ``W``), convex problems on the linearised dynamics::
 
     dx[j+1] = Ad[j] dx[j] + Bd[j] dw[j] + d[j]            (eqs. 30–32)
     lo_W <= w[j] + dw[j] <= hi_W                           (eqs. 37/38)
