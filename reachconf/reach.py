@@ -41,9 +41,9 @@ _STATUS = {
     4: "the abstraction error exceeded options.max_error",
 }
 _TERMS = {
-    0: "second-order Lagrange remainder (interval Hessian over the set)",
+    0: "second-order Lagrange remainder (over the set)",
     1: "quadratic term at the linearisation point (quad_map of the Hessian)",
-    2: "third-order Lagrange remainder (interval third-order tensor over the set)",
+    2: "third-order Lagrange remainder (over the set)",
     3: "static quadratic term of 'poly'",
 }
 
@@ -309,8 +309,7 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None,
         step_offsets = np.arange(samples.size)
 
     order = options.effective_tensor_order
-    comp = model.compiled(order=3 if order == 3 else 2)
-    third_iv = comp.third_iv if order == 3 else _dummy_third()
+    comp = model.compiled(order=3 if order == 3 else 2, remainder=options.remainder)
     S = dts.size
     gmax = int(n * max(options.zonotope_order, 1.0)) + n + 1
     me = np.broadcast_to(np.asarray(options.max_error, dtype=float), (n,)).copy()
@@ -330,7 +329,7 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None,
         )
 
     if stream is not None:
-        return _reach_streamed(model, options, Z0, Wz, samples, step_offsets, t_start, dts, U, comp, third_iv, gmax,
+        return _reach_streamed(model, options, Z0, Wz, samples, step_offsets, t_start, dts, U, comp, gmax,
                                me, params, algorithm, order, reduce_method, new_store, monitor, stream,
                                chunk_steps)  # fmt: skip
 
@@ -351,7 +350,7 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None,
                 stop = min(S, k + chunk)
                 status, step, bad_state, bad_term, c_fail, G_fail = nl.reach_loop(
                     c, G, U, dts, np.array(Wz.center), np.array(Wz.generators), params,
-                    int(options.taylor_terms), comp.f, comp.jac, comp.hess, comp.hess_iv, third_iv,
+                    int(options.taylor_terms), comp.f, comp.jac, comp.hess, comp.lagrange_iv,
                     algorithm, order, float(options.zonotope_order), float(options.intermediate_order),
                     float(options.error_order), reduce_method, int(options.max_error_iterations), me,
                     float(options.rounding), k, stop,
@@ -390,25 +389,7 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None,
                      monitor is not None and splits == 0)  # fmt: skip
 
 
-_DUMMY = None
-
-
-def _dummy_third():
-    global _DUMMY
-    if _DUMMY is None:
-        from numba import njit
-
-        from reachconf_kernels.signatures import IV_T4
-
-        @njit(IV_T4)
-        def no_third(zlo, zhi, p, outlo, outhi):  # pragma: no cover - never called
-            return 0
-
-        _DUMMY = no_third
-    return _DUMMY
-
-
-def _reach_streamed(model, options, Z0, Wz, samples, step_offsets, t_start, dts, U, comp, third_iv, gmax, me, params,
+def _reach_streamed(model, options, Z0, Wz, samples, step_offsets, t_start, dts, U, comp, gmax, me, params,
                     algorithm, order, reduce_method, new_store, monitor, stream, chunk_steps) -> ReachRun:  # fmt: skip
     """:func:`reach_run` without keeping the sets: chunks of ``chunk_steps`` steps, handed to ``stream``."""
     from reachconf_kernels import nonlinear as nl
@@ -432,7 +413,7 @@ def _reach_streamed(model, options, Z0, Wz, samples, step_offsets, t_start, dts,
                 base = k - 1 if k > 0 else 0
                 status, step, bad_state, bad_term, c_fail, G_fail = nl.reach_loop(
                     c, G, U[base:stop], dts[base:stop], wc, WG, params,
-                    int(options.taylor_terms), comp.f, comp.jac, comp.hess, comp.hess_iv, third_iv,
+                    int(options.taylor_terms), comp.f, comp.jac, comp.hess, comp.lagrange_iv,
                     algorithm, order, float(options.zonotope_order), float(options.intermediate_order),
                     float(options.error_order), reduce_method, int(options.max_error_iterations), me,
                     float(options.rounding), k - base, stop - base,

@@ -32,13 +32,16 @@ from reachconf.registry import NamedTypes
 from reachconf.sets.reduction import ReductionMethod, reduction_method
 
 __all__ = ["ReachOptions", "ReachAlgorithm", "ConservativeLinearization", "ConservativePolynomialization",
-           "ALGORITHM_TYPES", "reach_algorithm", "register_algorithm", "SPLIT_METHODS", "MAX_ORDER"]  # fmt: skip
+           "ALGORITHM_TYPES", "reach_algorithm", "register_algorithm", "SPLIT_METHODS", "MAX_ORDER",
+           "REMAINDERS"]  # fmt: skip
 
 #: how a set is split when its abstraction error cannot be bounded
 SPLIT_METHODS = ("generator", "box")
 #: largest zonotope order accepted (the reach stores ``order * n`` generators per step: 1000 at n = 6 is
 #: 48 kB per set; CORA's examples use 10-200)
 MAX_ORDER = 1000
+#: how the Lagrange remainders are bounded (:mod:`reachconf.model.codegen`)
+REMAINDERS = ("taylor", "tensor")
 
 
 class ReachAlgorithm:
@@ -70,9 +73,9 @@ class ConservativeLinearization(ReachAlgorithm):
 
     Each step linearises ``f`` at the centre of the set, propagates the linear
     system with uncertain inputs exactly (Taylor series of the exponential with
-    remainder) and adds the abstraction error, a Lagrange remainder bounded by
-    the interval Hessian over the set (tensor order 2) or by the Hessian at the
-    linearisation point plus the interval third-order tensor (tensor order 3),
+    remainder) and adds the abstraction error, a Lagrange remainder bounded
+    over the set at second order (tensor order 2) or by the Hessian at the
+    linearisation point plus a third-order bound over the set (tensor order 3),
     found by CORA's iterative fixed point.
 
     References
@@ -174,6 +177,12 @@ class ReachOptions:
         zonotope arithmetic.
     progress : bool or None, default None
         Show a tqdm bar; ``None``: when stderr is a terminal and the run is long.
+    remainder : {"taylor", "tensor"}, default "taylor"
+        How the Lagrange remainders are bounded over the set: interval
+        Taylor-mode arithmetic along the direction box (builds in seconds for
+        any model) or the symbolic interval Hessian / third-order tensor of
+        the older generator (build time grows with ``nz^3``; kept to compare).
+        See :mod:`reachconf.model.codegen`.
     """
 
     algorithm: str | ReachAlgorithm = "lin"
@@ -190,6 +199,7 @@ class ReachOptions:
     max_error_iterations: int = 25
     rounding: float = 1e-13
     progress: bool | None = None
+    remainder: str = "taylor"
 
     def __post_init__(self):
         check_field_types(self)
@@ -223,6 +233,8 @@ class ReachOptions:
             raise OptionsError("ReachOptions.max_error must be positive (inf allowed)")
         if not (0 <= self.rounding < 1e-6):
             raise OptionsError("ReachOptions.rounding must be in [0, 1e-6)")
+        if self.remainder not in REMAINDERS:
+            raise OptionsError(f"ReachOptions.remainder must be one of {REMAINDERS}, got {self.remainder!r}")
 
     @property
     def alg(self) -> ReachAlgorithm:

@@ -15,8 +15,11 @@ Per step (Althoff's conservative linearisation, CORA's ``linReach``; see
    time-interval set by an iteration: assume ``|L| <= 1.1 e``, enlarge the
    time-interval set by that error's particular solution, bound the
    remainder over the result, repeat until the bound is self-consistent;
-   ``tensor_order = 2``: ``1/2 dz^T |H([box])| dz``; ``tensor_order = 3``:
-   ``1/2 quad_map(Z, H(p))`` plus ``1/6 sum |T([box])| dz dz dz``; the
+   ``tensor_order = 2``: the model's ``lagrange_iv`` bound of
+   ``1/2 H(xi)[d, d]`` over the box; ``tensor_order = 3``: ``1/2 quad_map(Z,
+   H(p))`` plus its bound of ``1/6 T(xi)[d, d, d]`` (interval Taylor mode,
+   :mod:`reachconf_kernels.taylor`, or the interval tensors,
+   :mod:`reachconf_kernels.remainder`); the
    ``poly`` algorithm (polynomialisation) splits the quadratic term into a
    static part over the start set and a dynamic part over the increment;
 4. the error enters as a time-varying input; sets are reduced.
@@ -34,8 +37,7 @@ from numba import njit, types
 
 from reachconf_kernels import zonotope as Z
 from reachconf_kernels.signatures import (
-    FN_IV_T3,
-    FN_IV_T4,
+    FN_IV_REMAINDER,
     FN_POINT_MAT,
     FN_POINT_T3,
     FN_POINT_VEC,
@@ -59,9 +61,9 @@ NO_CONVERGENCE = 3  # the abstraction-error iteration did not become self-consis
 MAX_ERROR = 4  # the abstraction error exceeded max_error
 
 # error terms (for messages)
-TERM_LAGRANGE2 = 0  # second-order Lagrange remainder (interval Hessian)
+TERM_LAGRANGE2 = 0  # second-order Lagrange remainder (lagrange_iv, order 2)
 TERM_QUADRATIC = 1  # quadratic term at the linearisation point (quad_map)
-TERM_LAGRANGE3 = 2  # third-order Lagrange remainder (interval third-order tensor)
+TERM_LAGRANGE3 = 2  # third-order Lagrange remainder (lagrange_iv, order 3)
 TERM_STATIC = 3  # static (start-set) quadratic term of 'poly'
 
 REDUCE_GIRARD = 0
@@ -142,40 +144,6 @@ def _quadratic_error(cz, Gz, Hp, n, idx):
 
 
 @njit(cache=True)
-def _cubic_bound(Tlo, Thi, dz, n, nz):
-    """``1/6 sum_jkl max|T_ijkl| dz_j dz_k dz_l`` per state (T over the box)."""
-    out = np.zeros(n)
-    for i in range(n):
-        s = 0.0
-        for j in range(nz):
-            if dz[j] == 0.0:
-                continue
-            for k in range(nz):
-                if dz[k] == 0.0:
-                    continue
-                for l in range(nz):
-                    t = max(abs(Tlo[i, j, k, l]), abs(Thi[i, j, k, l]))
-                    s += t * dz[j] * dz[k] * dz[l]
-        out[i] = s / 6.0 * (1.0 + 1e-12)
-    return out
-
-
-@njit(cache=True)
-def _lagrange2_bound(Hlo, Hhi, dz, n, nz):
-    out = np.zeros(n)
-    for i in range(n):
-        s = 0.0
-        for j in range(nz):
-            if dz[j] == 0.0:
-                continue
-            for k in range(nz):
-                h = max(abs(Hlo[i, j, k]), abs(Hhi[i, j, k]))
-                s += h * dz[j] * dz[k]
-        out[i] = 0.5 * s * (1.0 + 1e-12)
-    return out
-
-
-@njit(cache=True)
 def _quad_maps_poly(cs, Gs, cd, Gd, Hp, n, idx):
     """Dynamic quadratic error of 'poly': ``1/2 [q(s, d) + q(d, s) + q(d, d)]``.
 
@@ -217,7 +185,7 @@ def _term_of(i, tensor_order, term_q, cubic):
 @njit(cache=True)
 def nonlinear_step(
     c, G, u, wc, WG, p, dt, r,
-    f, jac, hess, hess_iv, third_iv,
+    f, jac, hess, lagrange_iv,
     algorithm, tensor_order, zono_order, inter_order, err_order, reduce_method,
     max_iter, max_error, err_init, rel_round,
 ):  # fmt: skip
@@ -315,13 +283,10 @@ def nonlinear_step(
     zhi[n : n + m] = u
     zlo[n + m :] = wc - w_rad
     zhi[n + m :] = wc + w_rad
-    dz = np.zeros(nz)
-    dz[n + m :] = w_rad
-    Hlo = np.zeros((n, nz, nz))
-    Hhi = np.zeros((n, nz, nz))
-    T3 = 1 if tensor_order < 3 else nz
-    Tlo = np.zeros((n, T3, T3, T3))
-    Thi = np.zeros((n, T3, T3, T3))
+    dlo = np.zeros(nz)  # direction box z - (px, u, wc): the u part is fixed
+    dhi = np.zeros(nz)
+    dlo[n + m :] = -w_rad
+    dhi[n + m :] = w_rad
     # -- abstraction-error iteration
     err = err_init.copy()
     err_c = np.zeros(n)
@@ -344,18 +309,19 @@ def nonlinear_step(
         for i in range(n):
             zlo[i] = xlo[i] + px[i]
             zhi[i] = xhi[i] + px[i]
-            dz[i] = max(abs(xlo[i]), abs(xhi[i]))
+            dlo[i] = xlo[i]
+            dhi[i] = xhi[i]
         if tensor_order == 2:
-            st = hess_iv(zlo, zhi, p, Hlo, Hhi)
+            true_err = np.empty(n)
+            st = lagrange_iv(zlo, zhi, dlo, dhi, p, 2, true_err)
             if st != 0:
                 return c, empty, c, empty, err, DOMAIN_ERROR, st, TERM_LAGRANGE2
-            true_err = _lagrange2_bound(Hlo, Hhi, dz, n, nz)
             cubic = true_err
         else:
-            st = third_iv(zlo, zhi, p, Tlo, Thi)
+            cubic = np.empty(n)
+            st = lagrange_iv(zlo, zhi, dlo, dhi, p, 3, cubic)
             if st != 0:
                 return c, empty, c, empty, err, DOMAIN_ERROR, st, TERM_LAGRANGE3
-            cubic = _cubic_bound(Tlo, Thi, dz, n, nz)
             if algorithm == 1:
                 c_d, G_d = _add_box(cdiff, Gdiff, rad_v)
                 c_d, G_d = _reduce(c_d, G_d, err_order, reduce_method)
@@ -420,7 +386,7 @@ _i8 = types.int64
 _f8 = types.float64
 REACH_LOOP_ARGS = (
     f8_1, f8_2, f8_2, f8_1, f8_1, f8_2, f8_1, _i8,  # c0, G0, U, dts, wc, WG, p, r
-    FN_POINT_VEC, FN_POINT_MAT, FN_POINT_T3, FN_IV_T3, FN_IV_T4,  # f, jac, hess, hess_iv, third_iv
+    FN_POINT_VEC, FN_POINT_MAT, FN_POINT_T3, FN_IV_REMAINDER,  # f, jac, hess, lagrange_iv
     _i8, _i8, _f8, _f8, _f8, _i8,  # algorithm, tensor_order, orders, reduce_method
     _i8, f8_1, _f8, _i8, _i8,  # max_iter, max_error, rel_round, start, stop
     f8_2, f8_3, f8_2, f8_3, types.int64[::1], types.int64[::1], f8_2,  # stores, err_trace
@@ -430,7 +396,7 @@ REACH_LOOP_ARGS = (
 @njit(REACH_LOOP_ARGS, cache=True)
 def reach_loop(
     c0, G0, U, dts, wc, WG, p, r,
-    f, jac, hess, hess_iv, third_iv,
+    f, jac, hess, lagrange_iv,
     algorithm, tensor_order, zono_order, inter_order, err_order, reduce_method,
     max_iter, max_error, rel_round, start, stop,
     store_tp_c, store_tp_G, store_ti_c, store_ti_G, store_ng_tp, store_ng_ti, err_trace,
@@ -455,7 +421,7 @@ def reach_loop(
         err = err_trace[start - 1].copy()
     for k in range(start, stop):
         ctp, Gtp, cti, Gti, e, st, bs, bt = nonlinear_step(
-            c, G, U[k], wc, WG, p, dts[k], r, f, jac, hess, hess_iv, third_iv,
+            c, G, U[k], wc, WG, p, dts[k], r, f, jac, hess, lagrange_iv,
             algorithm, tensor_order, zono_order, inter_order, err_order, reduce_method,
             max_iter, max_error, err, rel_round,
         )  # fmt: skip

@@ -12,6 +12,13 @@ functions write into ``out``; interval functions take ``zlo, zhi`` and write
 in the k-th guarded operation, e.g. a division by an interval containing 0).
 Tensor outputs must be zero-initialised by the caller: generated code writes
 only the structurally non-zero entries.
+
+The reach kernels call the model's remainder function ``lagrange_iv``
+(:data:`IV_REMAINDER`): for a box ``Z = [zlo, zhi]`` of points, a box
+``D = [dlo, dhi]`` of directions and an order ``K`` (2 or 3: the Lagrange
+remainders of conservative linearisation and of tensor order 3) it writes,
+per state, a bound of ``|D^K f(xi)[d, ..., d]| / K!`` over ``xi`` in ``Z``, ``d``
+in ``D``.  The known inputs are fixed (their direction is not read).
 """
 
 from numba import types
@@ -38,6 +45,9 @@ IV_T3 = types.int64(f8_1, f8_1, f8_1, f8_3, f8_3)
 #: ``third_iv(zlo, zhi, p, outlo, outhi) -> status``
 IV_T4 = types.int64(f8_1, f8_1, f8_1, f8_4, f8_4)
 
+#: ``lagrange_iv(zlo, zhi, dlo, dhi, p, order, out) -> status``
+IV_REMAINDER = types.int64(f8_1, f8_1, f8_1, f8_1, f8_1, types.int64, f8_1)
+
 FN_POINT_VEC = types.FunctionType(POINT_VEC)
 FN_POINT_MAT = types.FunctionType(POINT_MAT)
 FN_POINT_T3 = types.FunctionType(POINT_T3)
@@ -46,3 +56,4 @@ FN_IV_VEC = types.FunctionType(IV_VEC)
 FN_IV_MAT = types.FunctionType(IV_MAT)
 FN_IV_T3 = types.FunctionType(IV_T3)
 FN_IV_T4 = types.FunctionType(IV_T4)
+FN_IV_REMAINDER = types.FunctionType(IV_REMAINDER)

@@ -2,14 +2,13 @@
 
 From the sympy expressions of ``f`` and ``h`` this module derives
 
-* ``f``, its Jacobian with respect to ``z = (x, u, w)``, its Hessians and
-  third-order tensors (only the structurally non-zero entries are written,
-  symmetric entries are computed once),
-* interval versions of ``f``, of the Hessians and of the third-order tensors,
-  evaluated over a box with the outward-rounded kernel
-  :mod:`reachconf_kernels.interval` (these bound the Lagrange remainder of the
-  linearisation, source report section 4.3.1),
-* ``h`` and its Jacobian,
+* ``f``, its Jacobian with respect to ``z = (x, u, w)`` and its Hessians at a
+  point (only the structurally non-zero entries are written, symmetric
+  entries are computed once),
+* the Lagrange remainders of the linearisation (source report section
+  4.3.1) over a box, ``lagrange_iv`` (order 2: ``1/2 H(xi)[d, d]``, order 3:
+  ``1/6 T(xi)[d, d, d]``), and ``f`` over a box (``f_iv``),
+* ``h`` and its Jacobian (point and interval),
 
 applies common-subexpression elimination, writes the result as a real Python
 module into a cache folder and compiles it with ``numba.njit(cache=True)`` with
@@ -17,6 +16,23 @@ the fixed signatures of :mod:`reachconf_kernels.signatures`.  The file name is
 a hash of the expressions, the names, the package version and this
 generator's version, so a second process imports the module and loads numba's
 on-disk cache without recompiling.
+
+Remainders (``remainder=``, :mod:`reachconf.model.remainders`):
+
+* ``"taylor"`` (default): ``f`` is recorded once as a tape
+  (:mod:`reachconf.model.tape`) that the compiled kernel
+  :mod:`reachconf_kernels.taylor` evaluates in interval Taylor-mode
+  arithmetic along the direction box, together with the symbolic second and
+  third derivatives where they are small (the smaller bound is kept).  No
+  interval derivative code is compiled per model, so the build grows with the
+  model, not with ``nz^3``: the closed-loop vehicle with the rate-limited
+  steering ``r tanh(k e / r)`` took 12 minutes before and takes seconds now
+  (``benchmarks/bench_codegen.py``).  One build serves both orders.
+* ``"tensor"``: the older path — the interval Hessian ``hess_iv`` and, with
+  ``order=3``, the third-order tensor (``third``, ``third_iv``) as generated
+  interval code, contracted by :mod:`reachconf_kernels.remainder`.  Kept to
+  compare against; the Taylor bounds are never larger
+  (``tests/model/test_taylor.py``).
 
 The cache folder is ``$REACHCONF_CACHE`` if set, else the user cache folder
 (``platformdirs.user_cache_dir("reachconf")``).
@@ -33,6 +49,7 @@ import re
 import sys
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from itertools import permutations
 from pathlib import Path
 
@@ -43,12 +60,16 @@ import reachconf_kernels
 from reachconf.errors import ModelError
 from reachconf.io.atomic import atomic_write
 from reachconf.model.printers import IntervalEmitter, point_code
+from reachconf.model.remainders import module_tape, taylor_section, tensor_section
+from reachconf_kernels.taylor import range_enclosure
 
 __all__ = ["CompiledModel", "compile_model", "cache_dir", "model_hash", "generate_source", "package_version",
-           "GENERATOR_VERSION"]  # fmt: skip
+           "GENERATOR_VERSION", "REMAINDERS"]  # fmt: skip
 
 #: Bump when the generated code changes meaning: old cache entries are then ignored.
-GENERATOR_VERSION = "1"
+GENERATOR_VERSION = "2"
+#: ways to bound the Lagrange remainders (see the module docstring)
+REMAINDERS = ("taylor", "tensor")
 
 
 def cache_dir() -> Path:
@@ -72,8 +93,14 @@ class CompiledModel:
     Attributes
     ----------
     f, jac, h, jac_h, hess : numba dispatchers (point evaluation)
-    f_iv, hess_iv : numba dispatchers (interval evaluation, return a status)
-    third, third_iv : numba dispatchers or None (only built with ``order=3``)
+    f_iv, jac_h_iv : interval evaluation (``f_iv(zlo, zhi, p, outlo, outhi)``, return a status);
+        ``f_iv`` of a ``"taylor"`` build is a Python function calling the tape kernel
+    lagrange_iv : numba dispatcher
+        Remainder bounds, signature ``IV_REMAINDER`` of
+        :mod:`reachconf_kernels.signatures` (order 3 of a ``"tensor"`` build with
+        ``order=2`` returns an error status).
+    hess_iv : numba dispatcher or None (``"tensor"`` builds only)
+    third, third_iv : numba dispatchers or None (``"tensor"`` builds with ``order=3``)
     hess_pattern : ndarray of bool, shape (n, nz, nz)
         Structurally non-zero Hessian entries.
     third_pattern : ndarray of bool or None, shape (n, nz, nz, nz)
@@ -85,6 +112,14 @@ class CompiledModel:
         True if the module existed already (no code generation this time).
     seconds : float
         Time to generate (if needed), import and compile/load.
+    generate_seconds, compile_seconds : float
+        The two parts of ``seconds`` (generation is 0 when loaded from the cache).
+    source_bytes : int
+        Size of the generated module.
+    remainder : str
+        ``"taylor"`` or ``"tensor"``.
+    tape : Tape or None
+        The Taylor tape (``"taylor"`` builds).
     """
 
     f: object
@@ -93,8 +128,9 @@ class CompiledModel:
     jac_h: object
     hess: object
     f_iv: object
-    hess_iv: object
+    hess_iv: object = None
     jac_h_iv: object = None
+    lagrange_iv: object = None
     third: object = None
     third_iv: object = None
     hess_pattern: np.ndarray | None = None
@@ -104,27 +140,35 @@ class CompiledModel:
     loaded_from_cache: bool = False
     seconds: float = 0.0
     module: object = None
+    generate_seconds: float = 0.0
+    compile_seconds: float = 0.0
+    source_bytes: int = 0
+    remainder: str = "taylor"
+    tape: object = None
 
     def dispatchers(self):
         """All compiled dispatchers (for cache statistics)."""
-        names = ("f", "jac", "h", "jac_h", "hess", "f_iv", "hess_iv", "jac_h_iv", "third", "third_iv")
-        return {k: getattr(self, k) for k in names if getattr(self, k) is not None}
+        names = ("f", "jac", "h", "jac_h", "hess", "f_iv", "hess_iv", "jac_h_iv", "third", "third_iv", "lagrange_iv")
+        return {k: getattr(self, k) for k in names if hasattr(getattr(self, k), "stats")}
 
 
 # ---------------------------------------------------------------------------
 # public entry point
 # ---------------------------------------------------------------------------
 def _kernel_fingerprint() -> str:
-    """Hash of the kernel sources the generated code calls.
+    """Hash of the kernel sources the generated code calls and of the generator's own sources.
 
     numba's on-disk cache of the generated module links against the compiled
-    interval kernel; when that kernel changes, the generated module must be
-    rebuilt in a fresh folder or numba reports "unresolved symbol".
+    interval and Taylor kernels; when they change, the generated module must be
+    rebuilt in a fresh folder or numba reports "unresolved symbol".  A change
+    of the generator or of the tape recorder changes the generated code.
     """
     h = hashlib.sha256()
     folder = Path(reachconf_kernels.__file__).parent
-    for name in ("interval.py", "__init__.py"):
+    for name in ("interval.py", "taylor.py", "taylor_rules.py", "remainder.py", "signatures.py", "__init__.py"):
         h.update((folder / name).read_bytes())
+    for name in ("codegen.py", "tape.py", "remainders.py", "printers.py"):
+        h.update((Path(__file__).parent / name).read_bytes())
     return h.hexdigest()[:16]
 
 
@@ -136,13 +180,14 @@ def package_version() -> str:
         return "0+unknown"
 
 
-def model_hash(model, order: int) -> str:
+def model_hash(model, order: int, remainder: str = "taylor") -> str:
     """Hash of what the generated code of ``model`` depends on (cache file name).
 
     Parameters
     ----------
     model : reachconf.Model
     order : {2, 3}
+    remainder : {"taylor", "tensor"}
 
     Returns
     -------
@@ -155,6 +200,7 @@ def model_hash(model, order: int) -> str:
         package_version(),
         _kernel_fingerprint(),
         str(order),
+        remainder,
         repr(model.state_names),
         repr(model.input_names),
         repr(model.disturbance_names),
@@ -168,14 +214,17 @@ def model_hash(model, order: int) -> str:
     return h.hexdigest()[:20]
 
 
-def compile_model(model, order: int = 2) -> CompiledModel:
+def compile_model(model, order: int = 2, remainder: str = "taylor") -> CompiledModel:
     """Generate (or find in the cache), import and compile the model's functions.
 
     Parameters
     ----------
     model : Model
     order : {2, 3}
-        Highest derivative order to build (3 adds the third-order tensors).
+        Highest remainder order needed.  Only the ``"tensor"`` path depends on
+        it (3 adds the third-order tensors); a ``"taylor"`` build serves both.
+    remainder : {"taylor", "tensor"}, default "taylor"
+        How the Lagrange remainders are bounded (see the module docstring).
 
     Returns
     -------
@@ -183,20 +232,25 @@ def compile_model(model, order: int = 2) -> CompiledModel:
     """
     if order not in (2, 3):
         raise ModelError(f"order must be 2 or 3, got {order!r}")
+    if remainder not in REMAINDERS:
+        raise ModelError(f"remainder must be one of {REMAINDERS}, got {remainder!r}")
+    if remainder == "taylor":
+        order = 3  # one build for both orders
     t0 = time.perf_counter()
-    digest = model_hash(model, order)
+    digest = model_hash(model, order, remainder)
     safe = re.sub(r"[^A-Za-z0-9_]", "_", model.name)[:40]
-    modname = f"reachconf_gen_{safe}_{digest}_o{order}"
+    modname = f"reachconf_gen_{safe}_{digest}_{'taylor' if remainder == 'taylor' else f'o{order}'}"
     folder = cache_dir()
     path = folder / f"{modname}.py"
     meta_path = folder / f"{modname}.npz"
     from_cache = path.exists() and meta_path.exists()
     if not from_cache:
-        source, meta = generate_source(model, order)
+        source, meta = generate_source(model, order, remainder)
         atomic_write(path, source)
         buf = io.BytesIO()
         np.savez(buf, **meta)
         atomic_write(meta_path, buf.getvalue())
+    t_gen = time.perf_counter() - t0
     module = sys.modules.get(modname)
     if module is None:
         spec = importlib.util.spec_from_file_location(modname, path)
@@ -209,15 +263,17 @@ def compile_model(model, order: int = 2) -> CompiledModel:
             raise
     meta = np.load(meta_path, allow_pickle=False)
     guards = [str(g) for g in meta["guards"]] if "guards" in meta else []
+    tape = module_tape(module)
     return CompiledModel(
         f=module.f,
         jac=module.jac,
         h=module.h,
         jac_h=module.jac_h,
         hess=module.hess,
-        f_iv=module.f_iv,
-        hess_iv=module.hess_iv,
+        f_iv=module.f_iv if tape is None else partial(range_enclosure, tape.ops, tape.consts, tape.outs, tape.segments),
+        hess_iv=getattr(module, "hess_iv", None),
         jac_h_iv=module.jac_h_iv,
+        lagrange_iv=module.lagrange_iv,
         third=getattr(module, "third", None),
         third_iv=getattr(module, "third_iv", None),
         hess_pattern=meta["hess_pattern"],
@@ -227,6 +283,11 @@ def compile_model(model, order: int = 2) -> CompiledModel:
         loaded_from_cache=from_cache,
         seconds=time.perf_counter() - t0,
         module=module,
+        generate_seconds=t_gen if not from_cache else 0.0,
+        compile_seconds=time.perf_counter() - t0 - t_gen,
+        source_bytes=path.stat().st_size,
+        remainder=remainder,
+        tape=tape,
     )
 
 
@@ -273,12 +334,15 @@ def _permutations4(j, k, l):
 # ---------------------------------------------------------------------------
 # source generation
 # ---------------------------------------------------------------------------
-_HEADER = '''"""Generated by reachconf.codegen (version {version}) for model {name!r}. Do not edit."""
+_HEADER = '''"""Generated by reachconf.codegen (version {version}, remainder {remainder!r}) for model {name!r}."""
 import math
 import numba as nb
+import numpy as np
 from reachconf_kernels import interval as I
+from reachconf_kernels import remainder as R
+from reachconf_kernels import taylor as TM
 from reachconf_kernels.signatures import (
-    POINT_VEC, POINT_MAT, POINT_T3, POINT_T4, IV_VEC, IV_MAT, IV_T3, IV_T4,
+    POINT_VEC, POINT_MAT, POINT_T3, POINT_T4, IV_VEC, IV_MAT, IV_T3, IV_T4, IV_REMAINDER,
 )
 
 '''
@@ -301,10 +365,15 @@ def _load_lines(symbols, z_index, p_index, used, point: bool) -> list[str]:
     return lines
 
 
-def _point_function(name, sig, targets, model, z_index, p_index) -> str:
-    """targets: list of (index-string, expr)."""
+def _point_function(name, sig, targets, model, z_index, p_index, opt="basic") -> str:
+    """targets: list of (index-string, expr).
+
+    ``opt="basic"`` (the tensor path) lets sympy factor terms before the
+    elimination, which took most of the generation time of large models; the
+    Taylor path passes ``None``.
+    """
     exprs = [e for _, e in targets]
-    reps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c_"), optimizations="basic") if exprs else ([], [])
+    reps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c_"), optimizations=opt) if exprs else ([], [])
     used = set()
     for e in exprs:
         used |= e.free_symbols
@@ -355,77 +424,76 @@ class _Renamed:
     def __init__(self, model):
         ren = {s: sp.Symbol(f"s_{s.name}", real=True) for s in model.z_symbols + model.p_symbols}
         self.name = model.name
+        self.m = model.m
         self.z_symbols = tuple(ren[s] for s in model.z_symbols)
         self.p_symbols = tuple(ren[s] for s in model.p_symbols)
         self.f_expr = tuple(e.xreplace(ren) for e in model.f_expr)
         self.h_expr = tuple(e.xreplace(ren) for e in model.h_expr)
 
 
-def generate_source(model, order: int):
-    """Python source of the compiled model module and its metadata arrays."""
+def generate_source(model, order: int, remainder: str = "taylor"):
+    """Python source of the compiled model module and its metadata arrays.
+
+    Parameters
+    ----------
+    model : reachconf.Model
+    order : {2, 3}
+        Highest remainder order (the ``"tensor"`` path builds the third-order tensors for 3).
+    remainder : {"taylor", "tensor"}
+
+    Returns
+    -------
+    (str, dict of ndarray)
+    """
     model = _Renamed(model)
-    f, jac, hess, third, h, jac_h = _derivatives(model, order)
+    tensor = remainder == "tensor"
+    opt = "basic" if tensor else None
+    f, jac, hess, third, h, jac_h = _derivatives(model, order if tensor else 3)
     z = model.z_symbols
     n, nz, p_out = len(f), len(z), len(h)
     z_index = {s: i for i, s in enumerate(z)}
     p_index = {s: i for i, s in enumerate(model.p_symbols)}
     guards: list[str] = []
 
-    parts = [_HEADER.format(version=GENERATOR_VERSION, name=model.name)]
-    parts.append(_point_function("f", "POINT_VEC", [(str(i), e) for i, e in enumerate(f)], model, z_index, p_index))
-    parts.append(
-        _point_function(
-            "jac",
-            "POINT_MAT",
-            [(f"{i}, {j}", e) for i in range(n) for j in range(nz) if (e := jac[i][j]) != 0],
-            model,
-            z_index,
-            p_index,
-        )
-    )
-    parts.append(_point_function("h", "POINT_VEC", [(str(i), e) for i, e in enumerate(h)], model, z_index, p_index))
-    parts.append(
-        _point_function(
-            "jac_h",
-            "POINT_MAT",
-            [(f"{i}, {j}", e) for i in range(p_out) for j in range(nz) if (e := jac_h[i][j]) != 0],
-            model,
-            z_index,
-            p_index,
-        )
-    )
+    def point(name, sig, targets):
+        return _point_function(name, sig, targets, model, z_index, p_index, opt)
+
+    def interval(name, sig, targets):
+        return _interval_function(name, sig, targets, model, z_index, p_index, guards)
+
+    def jacobian(rows, exprs):
+        return [(f"{i}, {j}", e) for i in range(rows) for j in range(nz) if (e := exprs[i][j]) != 0]
+
+    parts = [_HEADER.format(version=GENERATOR_VERSION, name=model.name, remainder=remainder)]
+    parts.append(point("f", "POINT_VEC", [(str(i), e) for i, e in enumerate(f)]))
+    parts.append(point("jac", "POINT_MAT", jacobian(n, jac)))
+    parts.append(point("h", "POINT_VEC", [(str(i), e) for i, e in enumerate(h)]))
+    parts.append(point("jac_h", "POINT_MAT", jacobian(p_out, jac_h)))
     hess_targets = []
     hess_pattern = np.zeros((n, nz, nz), dtype=bool)
     for (i, j, k), e in sorted(hess.items()):
         for a, b in _permutations3(j, k):
             hess_targets.append((f"{i}, {a}, {b}", e))
             hess_pattern[i, a, b] = True
-    parts.append(_point_function("hess", "POINT_T3", hess_targets, model, z_index, p_index))
-    parts.append(
-        _interval_function("f_iv", "IV_VEC", [(str(i), e) for i, e in enumerate(f)], model, z_index, p_index, guards)
-    )
-    parts.append(_interval_function("hess_iv", "IV_T3", hess_targets, model, z_index, p_index, guards))
-    parts.append(
-        _interval_function(
-            "jac_h_iv",
-            "IV_MAT",
-            [(f"{i}, {j}", e) for i in range(p_out) for j in range(nz) if (e := jac_h[i][j]) != 0],
-            model,
-            z_index,
-            p_index,
-            guards,
-        )
-    )
+    parts.append(point("hess", "POINT_T3", hess_targets))
+    parts.append(interval("jac_h_iv", "IV_MAT", jacobian(p_out, jac_h)))
     meta = {"hess_pattern": hess_pattern}
-    if order >= 3:
-        third_targets = []
-        third_pattern = np.zeros((n, nz, nz, nz), dtype=bool)
-        for (i, j, k, l), e in sorted(third.items()):
-            for a, b, c in _permutations4(j, k, l):
-                third_targets.append((f"{i}, {a}, {b}, {c}", e))
-                third_pattern[i, a, b, c] = True
-        parts.append(_point_function("third", "POINT_T4", third_targets, model, z_index, p_index))
-        parts.append(_interval_function("third_iv", "IV_T4", third_targets, model, z_index, p_index, guards))
-        meta["third_pattern"] = third_pattern
-    meta["guards"] = np.array(guards if guards else [""], dtype=str)[: len(guards)] if guards else np.array([], dtype=str)
+    if not tensor:
+        moving = [j for j in range(nz) if not (n <= j < n + model.m)]  # the inputs are fixed within a step
+        parts.append(taylor_section(f, z, model.p_symbols, moving, hess, third, guards)[0])
+    else:
+        parts.append(interval("f_iv", "IV_VEC", [(str(i), e) for i, e in enumerate(f)]))
+        parts.append(interval("hess_iv", "IV_T3", hess_targets))
+        if order >= 3:
+            third_targets = []
+            third_pattern = np.zeros((n, nz, nz, nz), dtype=bool)
+            for (i, j, k, l), e in sorted(third.items()):
+                for a, b, c in _permutations4(j, k, l):
+                    third_targets.append((f"{i}, {a}, {b}, {c}", e))
+                    third_pattern[i, a, b, c] = True
+            parts.append(point("third", "POINT_T4", third_targets))
+            parts.append(interval("third_iv", "IV_T4", third_targets))
+            meta["third_pattern"] = third_pattern
+        parts.append(tensor_section(order, guards))
+    meta["guards"] = np.array(guards, dtype=str) if guards else np.array([], dtype=str)
     return "".join(parts), meta

@@ -378,16 +378,18 @@ class Model:
         state["params"] = MappingProxyType(state["params"])
         self.__dict__.update(state)
 
-    def compiled(self, order: int = 2):
+    def compiled(self, order: int = 2, remainder: str = "taylor"):
         """The compiled functions of this model (see :func:`reachconf.model.codegen.compile_model`).
 
-        ``order=3`` also builds the third-order tensors.  Compilation happens
-        once per expression set and is cached on disk.
+        ``remainder="tensor"`` builds the older symbolic interval Hessian and,
+        with ``order=3``, third-order tensor; the default ``"taylor"`` build
+        serves every order.  Compilation happens once per expression set and
+        is cached on disk.
         """
-        key = f"_compiled_{order}"
+        key = "_compiled_taylor" if remainder == "taylor" else f"_compiled_{remainder}_{order}"
         cached = self.__dict__.get(key)
         if cached is None:
-            cached = compile_model(self, order=order)
+            cached = compile_model(self, order=order, remainder=remainder)
             self.__dict__[key] = cached
         return cached
 

@@ -118,9 +118,13 @@ def test_compiled_derivatives_match_sympy(name):
 
 @pytest.mark.parametrize("name", ["vanderpol", "bicycle", "bicycle_actuated", "wind_turbine", "diff_drive"])
 def test_interval_derivatives_enclose_point_values(name):
-    """Sound: every sampled point value lies in the interval evaluation over the box (and it is tight)."""
+    """Sound: every sampled point value lies in the interval evaluation over the box (and it is tight).
+
+    The symbolic interval tensors of the ``remainder="tensor"`` generator (the
+    default Taylor-mode remainders are tested in ``test_taylor.py``).
+    """
     model = get_model(name)
-    comp = model.compiled(order=3)
+    comp = model.compiled(order=3, remainder="tensor")
     p = model.param_vector
     rng = np.random.default_rng(7)
     center = rng.uniform(0.8, 1.2, model.nz)
@@ -155,14 +159,15 @@ def test_interval_derivatives_enclose_point_values(name):
     assert np.all(width <= 20 * (fmax - fmin) + 1e-6 * (1 + np.abs(fmax)))
 
 
-def test_interval_guard_reports_domain_error():
+@pytest.mark.parametrize("remainder", ["taylor", "tensor"])
+def test_interval_guard_reports_domain_error(remainder):
     model = get_model("bicycle")
-    comp = model.compiled()
+    comp = model.compiled(remainder=remainder)
     nz = model.nz
     zlo = np.full(nz, -1.0)
     zhi = np.full(nz, 1.0)  # vx box contains 0: division guarded
-    Hlo, Hhi = np.zeros((model.n, nz, nz)), np.zeros((model.n, nz, nz))
-    status = comp.hess_iv(zlo, zhi, model.param_vector, Hlo, Hhi)
+    out = np.zeros(model.n)
+    status = comp.lagrange_iv(zlo, zhi, zlo - 0.0, zhi - 0.0, model.param_vector, 2, out)
     assert status > 0
     assert "division" in comp.guards[status - 1]
 
