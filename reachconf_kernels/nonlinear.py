@@ -287,6 +287,21 @@ def nonlinear_step(
     dhi = np.zeros(nz)
     dlo[n + m :] = -w_rad
     dhi[n + m :] = w_rad
+    # the same directions as a zonotope (keeps the set's correlations for the remainder's affine parts):
+    # the time-interval set (lin) or start set + increments (poly), the error box (columns set per
+    # iteration) and W - wc
+    if algorithm == 1:
+        dx_c = cd + cdiff
+        dx_G = _hcat(G, Gdiff)
+    else:
+        dx_c = cti_lin
+        dx_G = Gti_lin
+    gx = dx_G.shape[1]
+    dc = np.zeros(nz)
+    dc[:n] = dx_c
+    dG = np.zeros((nz, gx + n + WG.shape[1]))
+    dG[:n, :gx] = dx_G
+    dG[n + m :, gx + n :] = WG
     # -- abstraction-error iteration
     err = err_init.copy()
     err_c = np.zeros(n)
@@ -307,19 +322,21 @@ def nonlinear_step(
             xlo = ti_lo - rad_v
             xhi = ti_hi + rad_v
         for i in range(n):
-            zlo[i] = xlo[i] + px[i]
-            zhi[i] = xhi[i] + px[i]
+            # the remainder's points lie on segments from px: the box must hold px too
+            zlo[i] = min(xlo[i], 0.0) + px[i]
+            zhi[i] = max(xhi[i], 0.0) + px[i]
             dlo[i] = xlo[i]
             dhi[i] = xhi[i]
+            dG[i, gx + i] = rad_v[i]
         if tensor_order == 2:
             true_err = np.empty(n)
-            st = lagrange_iv(zlo, zhi, dlo, dhi, p, 2, true_err)
+            st = lagrange_iv(zlo, zhi, dlo, dhi, z, dc, dG, p, 2, true_err)
             if st != 0:
                 return c, empty, c, empty, err, DOMAIN_ERROR, st, TERM_LAGRANGE2
             cubic = true_err
         else:
             cubic = np.empty(n)
-            st = lagrange_iv(zlo, zhi, dlo, dhi, p, 3, cubic)
+            st = lagrange_iv(zlo, zhi, dlo, dhi, z, dc, dG, p, 3, cubic)
             if st != 0:
                 return c, empty, c, empty, err, DOMAIN_ERROR, st, TERM_LAGRANGE3
             if algorithm == 1:

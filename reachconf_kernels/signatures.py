@@ -17,8 +17,11 @@ The reach kernels call the model's remainder function ``lagrange_iv``
 (:data:`IV_REMAINDER`): for a box ``Z = [zlo, zhi]`` of points, a box
 ``D = [dlo, dhi]`` of directions and an order ``K`` (2 or 3: the Lagrange
 remainders of conservative linearisation and of tensor order 3) it writes,
-per state, a bound of ``|D^K f(xi)[d, ..., d]| / K!`` over ``xi`` in ``Z``, ``d``
-in ``D``.  The known inputs are fixed (their direction is not read).
+per state, a bound of ``|D^K f(xi)[d, ..., d]| / K!`` over ``d`` in ``D`` and
+``xi`` on the segments from the expansion point ``zp`` to ``zp + d``, which
+``Z`` must contain.  ``dc + dG [-1, 1]``, a zonotope within ``D`` holding every
+direction (``dG`` may have no columns), keeps the correlations of the set.
+The known inputs are fixed (their direction is not read).
 """
 
 from numba import types
@@ -45,8 +48,8 @@ IV_T3 = types.int64(f8_1, f8_1, f8_1, f8_3, f8_3)
 #: ``third_iv(zlo, zhi, p, outlo, outhi) -> status``
 IV_T4 = types.int64(f8_1, f8_1, f8_1, f8_4, f8_4)
 
-#: ``lagrange_iv(zlo, zhi, dlo, dhi, p, order, out) -> status``
-IV_REMAINDER = types.int64(f8_1, f8_1, f8_1, f8_1, f8_1, types.int64, f8_1)
+#: ``lagrange_iv(zlo, zhi, dlo, dhi, zp, dc, dG, p, order, out) -> status``
+IV_REMAINDER = types.int64(f8_1, f8_1, f8_1, f8_1, f8_1, f8_1, f8_2, f8_1, types.int64, f8_1)
 
 FN_POINT_VEC = types.FunctionType(POINT_VEC)
 FN_POINT_MAT = types.FunctionType(POINT_MAT)

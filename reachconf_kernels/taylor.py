@@ -78,19 +78,26 @@ OP_MIN = 18
 OP_MAX = 19
 
 #: columns of a tape row
-COL_OP, COL_A, COL_B, COL_AUX, COL_DEG, COL_GUARD = 0, 1, 2, 3, 4, 5
+COL_OP, COL_A, COL_B, COL_AUX, COL_DEG, COL_GUARD, COL_FLAG = 0, 1, 2, 3, 4, 5, 6
+#: width of a tape row
+TAPE_COLUMNS = 7
 #: highest Taylor coefficient the kernel computes
 MAX_ORDER = 3
 
 @njit(cache=True)
-def evaluate(ops, consts, zlo, zhi, dlo, dhi, p, K, W, F, start, stop):
+def evaluate(ops, consts, zlo, zhi, dlo, dhi, p, K, W, F, start, stop, max_deg, tight):
     """Fill ``W[node, k] = (lo, hi)`` of the nodes ``start .. stop-1``, coefficients ``k <= K``.
 
     Returns 0 or the guard number of a failed domain check.  ``W`` must be
     zero-initialised, shape (nodes, MAX_ORDER + 1, 2); ``F`` is scratch of
     shape (MAX_ORDER + 1, 2).  Operands must lie in the evaluated range.
+    Nodes of a degree above ``max_deg`` are skipped.  ``tight`` (nodes, 2, 2),
+    unless empty, holds enclosures of the coefficients 0 and 1 of the flagged
+    nodes (:func:`affine_ranges`); they are intersected with the computed ones.
     """
     for i in range(start, stop):
+        if ops[i, 4] > max_deg:
+            continue
         op = ops[i, 0]
         a = ops[i, 1]
         b = ops[i, 2]
@@ -143,6 +150,7 @@ def evaluate(ops, consts, zlo, zhi, dlo, dhi, p, K, W, F, start, stop):
             R.cauchy_product(W, i, a, b, da, db, deg)
         else:
             # univariate functions of row a: phi^(m)(u0) into F, then Faa di Bruno
+            copied = False
             alo = W[a, 0, 0]
             ahi = W[a, 0, 1]
             smooth = deg >= 1  # derivatives needed
@@ -232,10 +240,10 @@ def evaluate(ops, consts, zlo, zhi, dlo, dhi, p, K, W, F, start, stop):
                     F[0, 0], F[0, 1] = I.abs(alo, ahi)
                 elif alo >= 0.0:
                     R.copy_series(W, i, a, deg, 1)
-                    continue
+                    copied = True
                 elif ahi <= 0.0:
                     R.copy_series(W, i, a, deg, -1)
-                    continue
+                    copied = True
                 else:
                     return guard
             elif op == OP_MIN or op == OP_MAX:
@@ -253,11 +261,18 @@ def evaluate(ops, consts, zlo, zhi, dlo, dhi, p, K, W, F, start, stop):
                         return guard
                     pick_a = a_below if op == OP_MIN else b_below
                     R.copy_series(W, i, a if pick_a else b, deg, 1)
-                    continue
-            W[i, 0, 0] = F[0, 0]
-            W[i, 0, 1] = F[0, 1]
-            if deg >= 1:
-                R.faa_di_bruno(W, i, a, da, deg, F)
+                    copied = True
+            if not copied:
+                W[i, 0, 0] = F[0, 0]
+                W[i, 0, 1] = F[0, 1]
+                if deg >= 1:
+                    R.faa_di_bruno(W, i, a, da, deg, F)
+        if tight.shape[0] > 0 and ops[i, COL_FLAG] == 1:
+            for k in range(2 if deg >= 1 else 1):
+                if tight[i, k, 0] > W[i, k, 0]:
+                    W[i, k, 0] = tight[i, k, 0]
+                if tight[i, k, 1] < W[i, k, 1]:
+                    W[i, k, 1] = tight[i, k, 1]
     return 0
 
 
@@ -294,8 +309,105 @@ def _direction_monomial(dlo, dhi, j, k, l):
 
 
 @njit(cache=True)
-def lagrange_bound(ops, consts, outs, tens, segments, zlo, zhi, dlo, dhi, p, K, out):
+def affine_ranges(ops, consts, stop, zp, dc, dG, p, W, F, tight):
+    """Enclosures of the coefficients 0 and 1 of the flagged affine nodes over a zonotope.
+
+    A flagged node is affine in the moving variables, ``y(z) = y(zp) + a . (z -
+    zp)``, and feeds a nonlinear one.  Over the zonotope ``D = dc + dG [-1, 1]``
+    of directions ``d = z - zp`` its coefficient 1, ``a . d``, lies in
+    ``a . dc +- sum_g |a . dG_g|`` and its coefficient 0 (at ``zp + tau d``,
+    ``tau`` in [0, 1]) in ``y(zp) + hull(that, 0)``: the correlations of the set
+    are kept, where the box of ``D`` sums ``|a_j|`` times each coordinate's
+    range.  The gradient ``a`` is propagated through the affine nodes with
+    interval arithmetic; the sums over the generators are rounded with an a
+    priori bound.  Writes ``tight[node, k] = (lo, hi)``; returns a status.
+    """
+    nz = zp.shape[0]
+    ng = dG.shape[1]
+    zero = np.zeros(nz)
+    status = evaluate(ops, consts, zp, zp, zero, zero, p, 0, W, F, 0, stop, 1, np.zeros((0, 2, 2)))  # y(zp)
+    if status != 0:
+        return status
+    A = np.zeros((stop, nz, 2))
+    gamma = (nz + 2) * 2.220446049250313e-16
+    for i in range(stop):
+        if ops[i, 4] != 1:
+            continue
+        op = ops[i, 0]
+        a = ops[i, 1]
+        b = ops[i, 2]
+        if op == OP_VAR:
+            A[i, ops[i, 3], 0] = 1.0
+            A[i, ops[i, 3], 1] = 1.0
+        elif op == OP_NEG:
+            for j in range(nz):
+                A[i, j, 0], A[i, j, 1] = -A[a, j, 1], -A[a, j, 0]
+        elif op == OP_ADD or op == OP_SUB:  # rows of degree-0 operands are zero
+            for j in range(nz):
+                if op == OP_ADD:
+                    A[i, j, 0], A[i, j, 1] = I.add(A[a, j, 0], A[a, j, 1], A[b, j, 0], A[b, j, 1])
+                else:
+                    A[i, j, 0], A[i, j, 1] = I.sub(A[a, j, 0], A[a, j, 1], A[b, j, 0], A[b, j, 1])
+        elif op == OP_MUL:  # one factor of degree 0, the other affine
+            c, v = (a, b) if ops[a, 4] == 0 else (b, a)
+            for j in range(nz):
+                A[i, j, 0], A[i, j, 1] = I.mul(W[c, 0, 0], W[c, 0, 1], A[v, j, 0], A[v, j, 1])
+        elif op == OP_ABS:
+            sign = 1.0 if W[a, 0, 0] >= 0.0 else -1.0  # the branch at zp (the box pass checks it holds)
+            for j in range(nz):
+                if sign > 0:
+                    A[i, j, 0], A[i, j, 1] = A[a, j, 0], A[a, j, 1]
+                else:
+                    A[i, j, 0], A[i, j, 1] = -A[a, j, 1], -A[a, j, 0]
+        elif op == OP_MIN or op == OP_MAX:
+            pick_a = (W[a, 0, 0] <= W[b, 0, 0]) == (op == OP_MIN)
+            src = a if pick_a else b
+            for j in range(nz):
+                A[i, j, 0], A[i, j, 1] = A[src, j, 0], A[src, j, 1]
+        else:
+            return 0  # not an affine rule: leave the box enclosures alone
+        if ops[i, COL_FLAG] != 1:
+            continue
+        # a . dc (interval) and R >= sum_g |a . dG_g| for every a in the interval gradient
+        clo, chi = 0.0, 0.0
+        am = np.empty(nz)
+        ar = np.empty(nz)
+        for j in range(nz):
+            t = I.mul(A[i, j, 0], A[i, j, 1], dc[j], dc[j])
+            clo, chi = I.add(clo, chi, t[0], t[1])
+            am[j] = 0.5 * (A[i, j, 0] + A[i, j, 1])
+            ar[j] = I.up(max(A[i, j, 1] - am[j], am[j] - A[i, j, 0]))
+        radius = 0.0
+        for g in range(ng):
+            mid = 0.0
+            mag = 0.0
+            spread = 0.0
+            for j in range(nz):
+                v = am[j] * dG[j, g]
+                mid += v
+                mag += abs(v)
+                spread += ar[j] * abs(dG[j, g])
+            radius += abs(mid) + gamma * mag + spread  # float sum error of mid is below gamma * mag
+        radius = I.up(radius * (1.0 + 2.0 * (ng + nz + 4) * 2.220446049250313e-16))
+        lo1, hi1 = I.sub(clo, chi, radius, radius)
+        hi1 = I.up(chi + radius)
+        tight[i, 1, 0] = lo1
+        tight[i, 1, 1] = hi1
+        h0 = I.add(W[i, 0, 0], W[i, 0, 1], lo1 if lo1 < 0.0 else 0.0, hi1 if hi1 > 0.0 else 0.0)
+        tight[i, 0, 0] = h0[0]
+        tight[i, 0, 1] = h0[1]
+    return 0
+
+
+@njit(cache=True)
+def lagrange_bound(ops, consts, outs, tens, segments, zlo, zhi, dlo, dhi, zp, dc, dG, p, K, out):
     """``out[i] >= |D^K f_i(xi)[d, ..., d]| / K!`` for all ``xi`` in [zlo, zhi], ``d`` in [dlo, dhi].
+
+    ``zp`` is the expansion point and ``D = dc + dG [-1, 1]`` a zonotope of the
+    directions ``d`` within the box (``dG`` with no columns: the box only);
+    ``xi`` is taken from the segments ``zp + tau d``, which the box must
+    contain.  The zonotope tightens the ranges of the affine sub-expressions
+    that feed nonlinear ones (:func:`affine_ranges`).
 
     Two enclosures, the smaller kept per output:
 
@@ -308,14 +420,24 @@ def lagrange_bound(ops, consts, outs, tens, segments, zlo, zhi, dlo, dhi, p, K, 
       segments[2]-1`` for K = 2 and ``segments[3] .. segments[4]-1`` for K = 3)
       and ``sum mult * [D f_i] * [d_j][d_k]([d_l]) / K!`` encloses the same
       quantity; ``segments[5 + (K - 2) * n + i]`` is 1 when every non-zero
-      entry of output ``i`` is recorded.
+      entry of output ``i`` is recorded; ``segments[5 + 2 n]`` is 1 when the
+      tape has flagged affine nodes.
 
     Returns 0 or the guard number of a failed domain check.
     """
     n = outs.shape[1]
     W = np.zeros((ops.shape[0], MAX_ORDER + 1, 2))
     F = np.zeros((MAX_ORDER + 1, 2))
-    status = evaluate(ops, consts, zlo, zhi, dlo, dhi, p, K, W, F, 0, segments[0])
+    tight = np.zeros((0, 2, 2))
+    if dG.shape[1] > 0 and segments[5 + 2 * n] == 1:
+        tight = np.empty((segments[0], 2, 2))
+        tight[:, :, 0] = -np.inf
+        tight[:, :, 1] = np.inf
+        status = affine_ranges(ops, consts, segments[0], zp, dc, dG, p, W, F, tight)
+        if status != 0:
+            return status
+        W[:] = 0.0
+    status = evaluate(ops, consts, zlo, zhi, dlo, dhi, p, K, W, F, 0, segments[0], MAX_ORDER, tight)
     if status != 0:
         return status
     for i in range(n):
@@ -332,7 +454,7 @@ def lagrange_bound(ops, consts, outs, tens, segments, zlo, zhi, dlo, dhi, p, K, 
     start = segments[1] if K == 2 else segments[3]
     stop = segments[2] if K == 2 else segments[4]
     if stop > start:
-        status = evaluate(ops, consts, zlo, zhi, dlo, dhi, p, 0, W, F, start, stop)
+        status = evaluate(ops, consts, zlo, zhi, dlo, dhi, p, 0, W, F, start, stop, MAX_ORDER, tight[:0])
         if status != 0:
             return status
         slo = np.zeros(n)
@@ -367,7 +489,7 @@ def range_enclosure(ops, consts, outs, segments, zlo, zhi, p, outlo, outhi):
     W = np.zeros((ops.shape[0], MAX_ORDER + 1, 2))
     F = np.zeros((MAX_ORDER + 1, 2))
     zero = np.zeros(n)
-    status = evaluate(ops, consts, zlo, zhi, zero, zero, p, 0, W, F, 0, segments[0])
+    status = evaluate(ops, consts, zlo, zhi, zero, zero, p, 0, W, F, 0, segments[0], MAX_ORDER, np.zeros((0, 2, 2)))
     if status != 0:
         return status
     for i in range(outs.shape[1]):
@@ -392,7 +514,7 @@ def coefficients(ops, consts, outs, segments, zlo, zhi, dlo, dhi, p, K, outlo, o
     """
     W = np.zeros((ops.shape[0], MAX_ORDER + 1, 2))
     F = np.zeros((MAX_ORDER + 1, 2))
-    status = evaluate(ops, consts, zlo, zhi, dlo, dhi, p, K, W, F, 0, segments[0])
+    status = evaluate(ops, consts, zlo, zhi, dlo, dhi, p, K, W, F, 0, segments[0], MAX_ORDER, np.zeros((0, 2, 2)))
     if status != 0:
         return status
     for i in range(outs.shape[1]):

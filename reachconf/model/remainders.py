@@ -19,7 +19,7 @@ from reachconf.model.tape import Tape, build_tape
 
 __all__ = ["taylor_section", "tensor_section", "module_tape"]
 
-_TAYLOR = '''TAPE_OPS = np.array({ops}, dtype=np.int64).reshape(({n_ops}, 6))
+_TAYLOR = '''TAPE_OPS = np.array({ops}, dtype=np.int64).reshape(({n_ops}, 7))
 TAPE_CONSTS = np.array({consts}, dtype=np.float64).reshape(({n_consts}, 2))
 TAPE_OUTS = np.array({outs}, dtype=np.int64).reshape(({n_forms}, {n}))
 TAPE_TENS = np.array({tens}, dtype=np.int64).reshape(({n_tens}, 6))
@@ -27,14 +27,14 @@ TAPE_SEGMENTS = np.array({segments}, dtype=np.int64)
 
 
 @nb.njit(IV_REMAINDER, cache=True)
-def lagrange_iv(zlo, zhi, dlo, dhi, p, order, out):
-    return TM.lagrange_bound(TAPE_OPS, TAPE_CONSTS, TAPE_OUTS, TAPE_TENS, TAPE_SEGMENTS, zlo, zhi, dlo, dhi, p, order,
-                             out)
+def lagrange_iv(zlo, zhi, dlo, dhi, zp, dc, dG, p, order, out):
+    return TM.lagrange_bound(TAPE_OPS, TAPE_CONSTS, TAPE_OUTS, TAPE_TENS, TAPE_SEGMENTS, zlo, zhi, dlo, dhi, zp, dc, dG,
+                             p, order, out)
 
 '''
 
 _TENSOR = '''@nb.njit(IV_REMAINDER, cache=True)
-def lagrange_iv(zlo, zhi, dlo, dhi, p, order, out):
+def lagrange_iv(zlo, zhi, dlo, dhi, zp, dc, dG, p, order, out):
     n, nz = out.shape[0], zlo.shape[0]
     if order == 2:
         Hlo = np.zeros((n, nz, nz))

@@ -51,16 +51,16 @@ class Tape:
 
     Attributes
     ----------
-    ops : ndarray of int64, shape (N, 6)
+    ops : ndarray of int64, shape (N, 7)
     consts : ndarray of float64, shape (C, 2)
     outs : ndarray of int64, shape (F, n)
         Node of each expression in each of the F recorded forms (all enclose
         the same function; the kernel keeps the tightest).
     tens : ndarray of int64, shape (E, 6)
         Recorded derivative-tensor entries ``[K, i, node, j, k, l]``.
-    segments : ndarray of int64, shape (5 + 2 n,)
-        Row ranges (Taylor rows, order-2 entries, order-3 entries) and the
-        per-output completeness flags (see
+    segments : ndarray of int64, shape (6 + 2 n,)
+        Row ranges (Taylor rows, order-2 entries, order-3 entries), the
+        per-output completeness flags and whether any affine node is flagged (see
         :func:`reachconf_kernels.taylor.lagrange_bound`).
     """
 
@@ -96,6 +96,7 @@ class _Recorder:
         self.fixed = 0  # > 0: recording the derivative entries of that order (variables of degree 0, own nodes)
         self.guards = guards
         self.rows: list[list[int]] = []
+        self.support: list[frozenset] = []
         self.consts: list[tuple[float, float]] = []
         self.const_index: dict = {}
         self.memo: dict = {}
@@ -109,7 +110,17 @@ class _Recorder:
         if guard_text is not None:
             self.guards.append(guard_text)
             guard = len(self.guards)
-        self.rows.append([op, a, b, aux, min(int(deg), T.MAX_ORDER), guard])
+        deg = min(int(deg), T.MAX_ORDER)
+        self.rows.append([op, a, b, aux, deg, guard, 0])
+        # moving variables a node depends on; an affine node of two or more of them that feeds a nonlinear
+        # node is flagged: the kernel then takes its range from the zonotope of the set (affine_ranges)
+        support = {aux} if op == T.OP_VAR and deg == 1 else set()
+        for operand in (a, b):
+            if operand >= 0 and op != T.OP_CONST:
+                support |= self.support[operand]
+                if deg > 1 and self.rows[operand][T.COL_DEG] == 1 and len(self.support[operand]) > 1:
+                    self.rows[operand][T.COL_FLAG] = 1
+        self.support.append(frozenset(support))
         return len(self.rows) - 1
 
     def const(self, lo: float, hi: float) -> int:
@@ -329,11 +340,12 @@ def build_tape(exprs, z_symbols, p_symbols, guards: list, directional=None, grou
                 tens.append([order, key[0], rec.emit(e), *key[1:], *([-1] if order == 2 else [])])
         rec.fixed = 0
         segments += [start, len(rec.rows)]
-    ops = np.array(rec.rows, dtype=np.int64).reshape(-1, 6)
+    ops = np.array(rec.rows, dtype=np.int64).reshape(-1, T.TAPE_COLUMNS)
     consts = np.array(rec.consts, dtype=np.float64).reshape(-1, 2)
     return Tape(ops=ops, consts=consts, outs=np.array(outs, dtype=np.int64).reshape(len(outs), n),
                 tens=np.array(tens, dtype=np.int64).reshape(-1, 6),
-                segments=np.concatenate([np.array(segments, dtype=np.int64), complete.ravel()]))
+                segments=np.concatenate([np.array(segments, dtype=np.int64), complete.ravel(),
+                                         [int(ops[: segments[0], T.COL_FLAG].any())]]))
 
 
 class _Freezer:

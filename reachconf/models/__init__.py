@@ -1,19 +1,20 @@
 """Built-in models, each a function returning a :class:`reachconf.Model`.
 
-================================  =====================================================
-name                              what
-================================  =====================================================
-``vanderpol``                     Van der Pol oscillator (ARCH-COMP NLN)
-``laub_loomis``                   Laub–Loomis 7-D benchmark (ARCH-COMP NLN)
-``bicycle``                       dynamic bicycle model f_B, eqs. 49–52, Table 1
-``bicycle_actuated``              f_BX with first-order actuators, eqs. 53–58, Table 2
-``bicycle_closed_loop``           f_B with the tracking controller, eqs. 59/60
-``bicycle_closed_loop_actuated``  the same with f_BX's actuators in the loop
-``wind_turbine``                  reduced NREL 5-MW turbine, eqs. 69, 77, 78, 80
-``pedestrian_acc``                acceleration-constrained pedestrian, eq. 73
-``pedestrian_vel``                velocity-constrained pedestrian, eq. 74
-``diff_drive``                    differential-drive robot, section 7.3
-================================  =====================================================
+====================================  =====================================================
+name                                  what
+====================================  =====================================================
+``vanderpol``                         Van der Pol oscillator (ARCH-COMP NLN)
+``laub_loomis``                       Laub–Loomis 7-D benchmark (ARCH-COMP NLN)
+``bicycle``                           dynamic bicycle model f_B, eqs. 49–52, Table 1
+``bicycle_actuated``                  f_BX with first-order actuators, eqs. 53–58, Table 2
+``bicycle_closed_loop``               f_B with the tracking controller, eqs. 59/60
+``bicycle_closed_loop_actuated``      the same with f_BX's actuators in the loop
+``bicycle_closed_loop_rate_limited``  the same with a rate-limited steering actuator
+``wind_turbine``                      reduced NREL 5-MW turbine, eqs. 69, 77, 78, 80
+``pedestrian_acc``                    acceleration-constrained pedestrian, eq. 73
+``pedestrian_vel``                    velocity-constrained pedestrian, eq. 74
+``diff_drive``                        differential-drive robot, section 7.3
+====================================  =====================================================
 
 ``get_model(name, **params)`` looks a model up by name (used by run files).
 """
@@ -31,6 +32,7 @@ _REGISTRY = {
     "bicycle_actuated": "reachconf.models.vehicle",
     "bicycle_closed_loop": "reachconf.models.vehicle",
     "bicycle_closed_loop_actuated": "reachconf.models.vehicle",
+    "bicycle_closed_loop_rate_limited": "reachconf.models.vehicle",
     "wind_turbine": "reachconf.models.windturbine",
     "pedestrian_acc": "reachconf.models.pedestrian",
     "pedestrian_vel": "reachconf.models.pedestrian",

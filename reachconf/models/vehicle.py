@@ -26,7 +26,8 @@ import sympy as sp
 from reachconf.model.core import Model
 from reachconf.models.vehicle_controller import ControllerGains, tracking_law
 
-__all__ = ["bicycle", "bicycle_actuated", "bicycle_closed_loop", "bicycle_closed_loop_actuated", "TABLE1", "TABLE2"]
+__all__ = ["bicycle", "bicycle_actuated", "bicycle_closed_loop", "bicycle_closed_loop_actuated",
+           "bicycle_closed_loop_rate_limited", "TABLE1", "TABLE2", "STEERING_RATE_LIMIT"]
 
 #: Table 1 (cornering stiffnesses as positive magnitudes, see module docstring).
 TABLE1 = {"J_m": 1.57, "L": 2.7, "b_L": 0.57, "c_f": 9.7, "c_r": 25.2, "mu": 1.0, "g": 9.81}
@@ -201,4 +202,52 @@ def bicycle_closed_loop_actuated(**params) -> Model:
         params=p,
         dynamics=f,
         description="closed-loop bicycle with actuator dynamics (sections 4.1.2 and 4.3)",
+    )
+
+
+#: the plant's steering-rate limit (``parameters_vehicle2().steering.v_max``, rad/s)
+STEERING_RATE_LIMIT = 0.4
+
+
+def bicycle_closed_loop_rate_limited(**params) -> Model:
+    """Closed-loop bicycle whose steering actuator is rate limited (``r tanh(k e / r)``).
+
+    As :func:`bicycle_closed_loop_actuated`, but the steering follows its target
+    ``delta_t = (delta_cmd / delta_s_nominal + delta_off) delta_s`` with a
+    smooth rate limit::
+
+        delta' = r_delta tanh(k_delta (delta_t - delta) / r_delta)
+
+    (slope ``k_delta`` for small errors, at most ``r_delta`` rad/s).  The plant
+    of the campaign limits the steering rate to 0.4 rad/s
+    (:data:`STEERING_RATE_LIMIT`), which the 4 m/s² double lane change reaches
+    for about a quarter of the run; the first-order actuator cannot follow
+    there.  Defaults: Table 2 and ``r_delta`` = 0.4 rad/s; identify them on your
+    data (``examples/vehicle``).
+    """
+    p = dict(TABLE1)
+    p.update(TABLE2)
+    p["delta_s_nominal"] = TABLE2["delta_s"]
+    p["r_delta"] = STEERING_RATE_LIMIT
+    p.update(_gain_params())
+    p.update(params)
+
+    def f(s):
+        ax_cmd, delta_cmd = _controller(s)
+        rhs = _bicycle_rhs(s, s.ax, s.delta, 0, 0, 0)
+        w = (s.w1, s.w2, s.w3, s.w4, s.w5, s.w6)
+        target = (delta_cmd / s.delta_s_nominal + s.delta_off) * s.delta_s
+        return [r + wi for r, wi in zip(rhs, w)] + [
+            -s.k_ax * (s.ax - (ax_cmd + s.ax_off) * s.ax_s),
+            s.r_delta * sp.tanh(s.k_delta * (target - s.delta) / s.r_delta),
+        ]
+
+    return Model(
+        name="bicycle_closed_loop_rate_limited",
+        states=STATES + ("ax", "delta"),
+        inputs=("X_ref", "Y_ref", "psi_ref", "v_ref", "kappa_ref"),
+        disturbances=("w1", "w2", "w3", "w4", "w5", "w6"),
+        params=p,
+        dynamics=f,
+        description="closed-loop bicycle with a rate-limited steering actuator (r tanh(k e / r))",
     )

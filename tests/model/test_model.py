@@ -167,7 +167,8 @@ def test_interval_guard_reports_domain_error(remainder):
     zlo = np.full(nz, -1.0)
     zhi = np.full(nz, 1.0)  # vx box contains 0: division guarded
     out = np.zeros(model.n)
-    status = comp.lagrange_iv(zlo, zhi, zlo - 0.0, zhi - 0.0, model.param_vector, 2, out)
+    zp = np.zeros(nz)
+    status = comp.lagrange_iv(zlo, zhi, zlo - zp, zhi - zp, zp, zp, np.zeros((nz, 0)), model.param_vector, 2, out)
     assert status > 0
     assert "division" in comp.guards[status - 1]
 
