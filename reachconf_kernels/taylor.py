@@ -48,7 +48,6 @@ constant intervals; ``outs`` the node of each output.
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 from numba import njit
@@ -277,38 +276,6 @@ def evaluate(ops, consts, zlo, zhi, dlo, dhi, p, K, W, F, start, stop, max_deg, 
 
 
 @njit(cache=True)
-def _magnitude(lo, hi):
-    if lo != lo or hi != hi:
-        return np.nan
-    a = -lo if lo < 0.0 else lo
-    b = -hi if hi < 0.0 else hi
-    return a if a > b else b
-
-
-@njit(cache=True)
-def _direction_monomial(dlo, dhi, j, k, l):
-    """Enclosure of ``d_j d_k`` (``l < 0``) or ``d_j d_k d_l`` and the number of distinct index orders."""
-    if l < 0:
-        if j == k:
-            lo, hi = I.sqr(dlo[j], dhi[j])
-            return lo, hi, 1.0
-        lo, hi = I.mul(dlo[j], dhi[j], dlo[k], dhi[k])
-        return lo, hi, 2.0
-    if j == k and k == l:
-        lo, hi = I.pow(dlo[j], dhi[j], 3)
-        return lo, hi, 1.0
-    if j == k or k == l or j == l:
-        a = j if (j == k or j == l) else k  # the repeated index
-        b = l if j == k else (k if j == l else j)
-        s = I.sqr(dlo[a], dhi[a])
-        lo, hi = I.mul(s[0], s[1], dlo[b], dhi[b])
-        return lo, hi, 3.0
-    q = I.mul(dlo[j], dhi[j], dlo[k], dhi[k])
-    lo, hi = I.mul(q[0], q[1], dlo[l], dhi[l])
-    return lo, hi, 6.0
-
-
-@njit(cache=True)
 def affine_ranges(ops, consts, stop, zp, dc, dG, p, W, F, tight):
     """Enclosures of the coefficients 0 and 1 of the flagged affine nodes over a zonotope.
 
@@ -444,7 +411,7 @@ def lagrange_bound(ops, consts, outs, tens, segments, zlo, zhi, dlo, dhi, zp, dc
         best = np.inf
         for f in range(outs.shape[0]):
             node = outs[f, i]
-            m = 0.0 if ops[node, 4] < K else _magnitude(W[node, K, 0], W[node, K, 1])
+            m = 0.0 if ops[node, 4] < K else R.magnitude(W[node, K, 0], W[node, K, 1])
             if m != m:
                 best = np.nan
                 break
@@ -464,14 +431,14 @@ def lagrange_bound(ops, consts, outs, tens, segments, zlo, zhi, dlo, dhi, zp, dc
                 continue
             i = tens[e, 1]
             node = tens[e, 2]
-            mlo, mhi, mult = _direction_monomial(dlo, dhi, tens[e, 3], tens[e, 4], tens[e, 5])
+            mlo, mhi, mult = R.direction_monomial(dlo, dhi, tens[e, 3], tens[e, 4], tens[e, 5])
             t = I.mul(W[node, 0, 0], W[node, 0, 1], mlo, mhi)
             t = I.mul(t[0], t[1], mult, mult)
             slo[i], shi[i] = I.add(slo[i], shi[i], t[0], t[1])
         scale = 0.5 if K == 2 else 1.0 / 6.0
         for i in range(n):
             if segments[5 + (K - 2) * n + i] == 1:
-                m = _magnitude(slo[i], shi[i])
+                m = R.magnitude(slo[i], shi[i])
                 if m == m:
                     m = I.up(m * scale) if K == 2 else I.up(I.up(m / 6.0))
                     if m < out[i]:

@@ -9,6 +9,7 @@ coefficients of the argument.  Tape rows live in ``W[node, k] = (lo, hi)``.
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from reachconf_kernels import interval as I
@@ -226,3 +227,36 @@ def copy_series(W, i, a, K, sign):
         else:
             W[i, k, 0] = -W[a, k, 1]
             W[i, k, 1] = -W[a, k, 0]
+
+
+@njit(cache=True)
+def magnitude(lo, hi):
+    """``max(|lo|, |hi|)``; NaN if a bound is NaN."""
+    if lo != lo or hi != hi:
+        return np.nan
+    a = -lo if lo < 0.0 else lo
+    b = -hi if hi < 0.0 else hi
+    return a if a > b else b
+
+
+@njit(cache=True)
+def direction_monomial(dlo, dhi, j, k, l):
+    """Enclosure of ``d_j d_k`` (``l < 0``) or ``d_j d_k d_l`` and the number of distinct index orders."""
+    if l < 0:
+        if j == k:
+            lo, hi = I.sqr(dlo[j], dhi[j])
+            return lo, hi, 1.0
+        lo, hi = I.mul(dlo[j], dhi[j], dlo[k], dhi[k])
+        return lo, hi, 2.0
+    if j == k and k == l:
+        lo, hi = I.pow(dlo[j], dhi[j], 3)
+        return lo, hi, 1.0
+    if j == k or k == l or j == l:
+        a = j if (j == k or j == l) else k  # the repeated index
+        b = l if j == k else (k if j == l else j)
+        s = I.sqr(dlo[a], dhi[a])
+        lo, hi = I.mul(s[0], s[1], dlo[b], dhi[b])
+        return lo, hi, 3.0
+    q = I.mul(dlo[j], dhi[j], dlo[k], dhi[k])
+    lo, hi = I.mul(q[0], q[1], dlo[l], dhi[l])
+    return lo, hi, 6.0
