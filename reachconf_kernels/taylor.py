@@ -85,7 +85,7 @@ MAX_ORDER = 3
 
 @njit(cache=True)
 def evaluate(ops, consts, zlo, zhi, dlo, dhi, p, K, W, F, start, stop, max_deg, tight):
-    """Fill ``W[node, k] = (lo, hi)`` of the nodes ``start .. stop-1``, coefficients ``k <= K``.
+    """Fill ``W[node, k] = (lo, hi)`` of the nodes ``start`` to ``stop - 1``, coefficients ``k <= K``.
 
     Returns 0 or the guard number of a failed domain check.  ``W`` must be
     zero-initialised, shape (nodes, MAX_ORDER + 1, 2); ``F`` is scratch of
@@ -475,7 +475,7 @@ def range_enclosure(ops, consts, outs, segments, zlo, zhi, p, outlo, outhi):
 
 @njit(cache=True)
 def coefficients(ops, consts, outs, segments, zlo, zhi, dlo, dhi, p, K, outlo, outhi):
-    """Coefficients ``t^0 .. t^K`` of the outputs (first recorded form), shape (n, K + 1) each.
+    """Coefficients ``t^0`` to ``t^K`` of the outputs (first recorded form), shape (n, K + 1) each.
 
     For tests and diagnostics.
     """

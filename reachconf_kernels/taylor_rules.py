@@ -113,7 +113,7 @@ def tanh_derivatives(F, tlo, thi, K):
 
 @njit(cache=True)
 def atan_derivatives(F, xlo, xhi, K):
-    """Derivatives 1 .. K of atan over [xlo, xhi] into ``F[1 .. K]``."""
+    """Derivatives 1 to K of atan over [xlo, xhi] into rows 1 to K of ``F``."""
     w = I.sqr(xlo, xhi)
     w = I.add(w[0], w[1], 1.0, 1.0)
     F[1, 0], F[1, 1] = I.div(1.0, 1.0, w[0], w[1])
@@ -219,7 +219,7 @@ def cauchy_product(W, i, a, b, da, db, K):
 
 @njit(cache=True)
 def copy_series(W, i, a, K, sign):
-    """Row ``i`` = row ``a`` (``sign > 0``) or its negation, coefficients ``0 .. K``."""
+    """Row ``i`` = row ``a`` (``sign > 0``) or its negation, coefficients 0 to K."""
     for k in range(K + 1):
         if sign > 0:
             W[i, k, 0] = W[a, k, 0]

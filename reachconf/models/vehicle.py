@@ -169,6 +169,38 @@ def bicycle_closed_loop(**params) -> Model:
     )
 
 
+def _actuated_closed_loop(name, description, params, rate_limit=None) -> Model:
+    """Closed-loop bicycle with first-order actuators; the steering rate is limited if ``rate_limit``."""
+    p = dict(TABLE1)
+    p.update(TABLE2)
+    p["delta_s_nominal"] = TABLE2["delta_s"]
+    if rate_limit is not None:
+        p["r_delta"] = rate_limit
+    p.update(_gain_params())
+    p.update(params)
+
+    def f(s):
+        ax_cmd, delta_cmd = _controller(s)
+        rhs = _bicycle_rhs(s, s.ax, s.delta, 0, 0, 0)
+        w = (s.w1, s.w2, s.w3, s.w4, s.w5, s.w6)
+        target = (delta_cmd / s.delta_s_nominal + s.delta_off) * s.delta_s
+        if rate_limit is None:
+            steering = -s.k_delta * (s.delta - target)
+        else:
+            steering = s.r_delta * sp.tanh(s.k_delta * (target - s.delta) / s.r_delta)
+        return [r + wi for r, wi in zip(rhs, w)] + [-s.k_ax * (s.ax - (ax_cmd + s.ax_off) * s.ax_s), steering]
+
+    return Model(
+        name=name,
+        states=STATES + ("ax", "delta"),
+        inputs=("X_ref", "Y_ref", "psi_ref", "v_ref", "kappa_ref"),
+        disturbances=("w1", "w2", "w3", "w4", "w5", "w6"),
+        params=p,
+        dynamics=f,
+        description=description,
+    )
+
+
 def bicycle_closed_loop_actuated(**params) -> Model:
     """Closed-loop bicycle with the actuators of f_BX between controller and vehicle.
 
@@ -179,29 +211,10 @@ def bicycle_closed_loop_actuated(**params) -> Model:
     ``X, Y, psi, vx, vy, omega, ax, delta`` (the realised acceleration and
     steering angle are measured); disturbances ``w1..w6`` on the vehicle ODEs.
     """
-    p = dict(TABLE1)
-    p.update(TABLE2)
-    p["delta_s_nominal"] = TABLE2["delta_s"]
-    p.update(_gain_params())
-    p.update(params)
-
-    def f(s):
-        ax_cmd, delta_cmd = _controller(s)
-        rhs = _bicycle_rhs(s, s.ax, s.delta, 0, 0, 0)
-        w = (s.w1, s.w2, s.w3, s.w4, s.w5, s.w6)
-        return [r + wi for r, wi in zip(rhs, w)] + [
-            -s.k_ax * (s.ax - (ax_cmd + s.ax_off) * s.ax_s),
-            -s.k_delta * (s.delta - (delta_cmd / s.delta_s_nominal + s.delta_off) * s.delta_s),
-        ]
-
-    return Model(
-        name="bicycle_closed_loop_actuated",
-        states=STATES + ("ax", "delta"),
-        inputs=("X_ref", "Y_ref", "psi_ref", "v_ref", "kappa_ref"),
-        disturbances=("w1", "w2", "w3", "w4", "w5", "w6"),
-        params=p,
-        dynamics=f,
-        description="closed-loop bicycle with actuator dynamics (sections 4.1.2 and 4.3)",
+    return _actuated_closed_loop(
+        "bicycle_closed_loop_actuated",
+        "closed-loop bicycle with actuator dynamics (sections 4.1.2 and 4.3)",
+        params,
     )
 
 
@@ -225,29 +238,9 @@ def bicycle_closed_loop_rate_limited(**params) -> Model:
     there.  Defaults: Table 2 and ``r_delta`` = 0.4 rad/s; identify them on your
     data (``examples/vehicle``).
     """
-    p = dict(TABLE1)
-    p.update(TABLE2)
-    p["delta_s_nominal"] = TABLE2["delta_s"]
-    p["r_delta"] = STEERING_RATE_LIMIT
-    p.update(_gain_params())
-    p.update(params)
-
-    def f(s):
-        ax_cmd, delta_cmd = _controller(s)
-        rhs = _bicycle_rhs(s, s.ax, s.delta, 0, 0, 0)
-        w = (s.w1, s.w2, s.w3, s.w4, s.w5, s.w6)
-        target = (delta_cmd / s.delta_s_nominal + s.delta_off) * s.delta_s
-        return [r + wi for r, wi in zip(rhs, w)] + [
-            -s.k_ax * (s.ax - (ax_cmd + s.ax_off) * s.ax_s),
-            s.r_delta * sp.tanh(s.k_delta * (target - s.delta) / s.r_delta),
-        ]
-
-    return Model(
-        name="bicycle_closed_loop_rate_limited",
-        states=STATES + ("ax", "delta"),
-        inputs=("X_ref", "Y_ref", "psi_ref", "v_ref", "kappa_ref"),
-        disturbances=("w1", "w2", "w3", "w4", "w5", "w6"),
-        params=p,
-        dynamics=f,
-        description="closed-loop bicycle with a rate-limited steering actuator (r tanh(k e / r))",
+    return _actuated_closed_loop(
+        "bicycle_closed_loop_rate_limited",
+        "closed-loop bicycle with a rate-limited steering actuator (r tanh(k e / r))",
+        params,
+        rate_limit=STEERING_RATE_LIMIT,
     )
