@@ -74,6 +74,10 @@ _LAZY = {
     "GapReport": "reachconf.diagnose.report",
     "locate_gap": "reachconf.diagnose.locate",
     "identify": "reachconf.diagnose.identify",
+    "Pool": "reachconf.runner.pool",
+    "WorkersLost": "reachconf.runner.tasks",
+    "Interrupted": "reachconf.runner.tasks",
+    "warm_up": "reachconf.warmup",
 }
 
 #: old module path -> the module's home since the layout of issue 14 (the old paths keep working)

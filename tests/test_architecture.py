@@ -27,7 +27,7 @@ LAYERS = (
                                        "reachconf.tube", "reachconf.models")),
     ("conformance, data sets", ("reachconf.conformance", "reachconf.datasets")),
     ("gap diagnosis", ("reachconf.diagnose",)),
-    ("run files, demo", ("reachconf.runfile", "reachconf.demo")),
+    ("run files, demo, warm-up", ("reachconf.runfile", "reachconf.demo", "reachconf.warmup")),
     ("command line", ("reachconf.cli",)),
     ("the package face", ("reachconf",)),
 )

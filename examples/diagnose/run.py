@@ -1,6 +1,6 @@
 """Gap diagnosis checked on data whose effect is withheld from the model.
 
-    python examples/diagnose/run.py --out DIR [--repetitions 3] [--only yaw_offset ...] [--workers 2]
+    python examples/diagnose/run.py --out DIR [--repetitions 3] [--only yaw_offset ...] [--workers 2 | --scheduler ADDR]
 
 For every entry of :data:`withheld.WITHHELD` (steering lag
 0.1 s, steering dead time 80 ms, acceleration scale 0.64 with offset 0.32 m/s²,
@@ -114,7 +114,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", required=True)
     ap.add_argument("--repetitions", type=int, default=3)
     ap.add_argument("--only", nargs="*", choices=sorted(WITHHELD), help="only these withheld effects")
-    ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--workers", type=int, default=None, help="local worker processes (one pool for the run)")
+    ap.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://host:port instead of --workers")
     ap.add_argument("--reach", action="store_true", help="also the reachset-conformant W before/after (slower)")
     args = ap.parse_args(argv)
     out = Path(args.out)
@@ -123,10 +124,11 @@ def main(argv=None) -> int:
     nominal = nominal_bicycle_params()
     print(f"nominal parameters (earlier identification): {nominal}  [{time.perf_counter() - t0:.0f} s]", flush=True)
     names = args.only or list(WITHHELD)
-    from reachconf.runner import run_cases
+    from reachconf.runner import Pool
 
-    rows = run_cases(run_one, [(n, args.repetitions, nominal, str(out), args.reach) for n in names], workers=args.workers,
-                     desc="withheld suites")  # fmt: skip
+    with Pool(args.workers, args.scheduler) as pool:  # the run's one pool (each suite's diagnosis is one task)
+        rows = pool.map(run_one, [(n, args.repetitions, nominal, str(out), args.reach) for n in names],
+                        desc="withheld suites", unit="suite")  # fmt: skip
     result = {"nominal": nominal, "rows": rows, "correct": sum(r["correct"] for r in rows), "total": len(rows),
               "seconds": time.perf_counter() - t0}  # fmt: skip
     atomic_write(out / "confusion.json", json.dumps(result, indent=2, default=float))

@@ -1,6 +1,6 @@
 """Vehicle use case end to end (source report sections 4-5): Tables 3, 4, 6, 8 and Figures 7-8.
 
-    python examples/vehicle/run.py --out DIR [--quick] [--workers 2]
+    python examples/vehicle/run.py --out DIR [--quick] [--workers 2 | --scheduler tcp://host:8786]
 
 0. the campaign: 4 maneuvers x 2 lateral accelerations x 5 repetitions from the
    multi-body plant (``reachconf.datasets.vehicle_campaign``), saved to DIR/campaign and reused;
@@ -42,7 +42,7 @@ from reachconf.conformance import SynthesisOptions, synthesize_W  # noqa: E402
 from reachconf.io import atomic_write, load_suite  # noqa: E402
 from reachconf.models import bicycle, bicycle_actuated, bicycle_closed_loop_actuated  # noqa: E402
 from reachconf.plot import plot_measured, save_figure  # noqa: E402
-from reachconf.runner import process_pool  # noqa: E402
+from reachconf.runner import Pool, WorkersLost  # noqa: E402
 
 DEG = np.pi / 180
 #: Table 3 measurement errors (X, Y, psi, vx, vy, omega); the report's nu_4 (pitch) has no counterpart here
@@ -217,7 +217,8 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true",
                     help=f"{QUICK['maneuvers']} at {QUICK['accelerations']} m/s^2, one run each, "
                          f"first {QUICK['horizon']:g} s")  # fmt: skip
-    ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--workers", type=int, default=None, help="local worker processes (one pool for the whole run)")
+    ap.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://host:port instead of --workers")
     ap.add_argument("--compare-requested", action="store_true",
                     help="also f_B driven by the requests (always with --quick; about 85 s on the full campaign)")
     args = ap.parse_args(argv)
@@ -235,12 +236,14 @@ def main(argv=None):
     timings["campaign"] = time.perf_counter() - t0
     print(f"campaign: {len(suite)} cases, groups {list(suite.groups())} ({timings['campaign']:.1f} s)", flush=True)
     t_after = time.perf_counter()
-    pool = process_pool(args.workers) if args.workers and args.workers > 1 else None
+    pool = Pool(args.workers, args.scheduler)  # the run's one pool: every parallel step submits its tasks to it
     result = {}
     try:
         _run(args, out, suite, plain, pool, timings, result)
-    except KeyboardInterrupt:
-        # Ctrl-C: keep what is finished (the steps' results so far) and say so
+    except (KeyboardInterrupt, WorkersLost) as exc:
+        # Ctrl-C or no worker left: keep what is finished (the steps' results so far) and say so
+        if isinstance(exc, WorkersLost):
+            print(f"stopped: {exc}", file=sys.stderr)
         timings["after_campaign"] = time.perf_counter() - t_after
         result.update(timings=timings, interrupted=True)
         atomic_write(out / "vehicle.json", json.dumps(result, indent=2, default=float))
@@ -248,8 +251,7 @@ def main(argv=None):
         print(f"interrupted: wrote the finished parts ({', '.join(done) or 'none'}) to {out / 'vehicle.json'}")
         return 130
     finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)
+        pool.close()
     timings["after_campaign"] = time.perf_counter() - t_after
     result["timings"] = timings
     atomic_write(out / "vehicle.json", json.dumps(result, indent=2, default=float))
@@ -304,7 +306,7 @@ def _run(args, out, suite, plain, pool, timings, result):
     # recordings' 100 Hz (step 1: per-step trace where it stays in V, else Alg. 2; step 2: the sparse box SCP)
     sopts = SynthesisOptions(alpha_iterations=8, merge_iterations=6, alpha_max=4.0, step2_decimate=1,
                              reach=REACH_TABLE6_FAST, reach_fallback=ropts)  # fmt: skip
-    synth = synthesize_W(fCL, cl_suite, box(V_TABLE6), sopts, executor=pool, workers=args.workers)
+    synth = synthesize_W(fCL, cl_suite, box(V_TABLE6), sopts, pool=pool)
     timings["table6"] = time.perf_counter() - t0
     synth.to_json(out / "synthesis.json")
     result.update({

@@ -1,14 +1,18 @@
 """The α-search of eq. 68: the smallest scaling ``c + α g`` of a box that passes a check.
 
-Used by synthesis step 3 (per case) and the merge per maneuver
-(:mod:`reachconf.conformance.synthesis`).
+Used by synthesis step 3 (per case, :mod:`reachconf.conformance.synthesis`),
+the merge per maneuver (:mod:`reachconf.conformance.merge`) and the Pareto
+front (:mod:`reachconf.conformance.pareto`), with the check of
+:func:`reachset_check`.
 """
 
 from __future__ import annotations
 
+from reachconf.conformance.reachset import reachset_conformance
 from reachconf.sets.core import Interval
+from reachconf.verdict import Verdict
 
-__all__ = ["alpha_search", "scaled_box"]
+__all__ = ["alpha_search", "scaled_box", "reachset_check"]
 
 
 def scaled_box(c, g, alpha) -> Interval:
@@ -47,3 +51,28 @@ def alpha_search(check, W: Interval, iterations: int = 10, alpha_max: float = 1.
         else:
             lo = mid
     return hi, scaled_box(c, g, hi), True, trials
+
+
+def reachset_check(model, case, W, V, options):
+    """The reachset-conformance check of the α-searches: eq. 43 from the initial set of eq. 67.
+
+    Stops at the first violation; when the reach with ``options.reach``
+    fails (the set explodes), tries ``options.reach_fallback`` if given.
+
+    Parameters
+    ----------
+    model : Model
+    case : TestCase
+    W, V : Interval
+    options : SynthesisOptions
+
+    Returns
+    -------
+    ReachsetResult
+    """
+    res = reachset_conformance(model, case, W, V, options=options.reach, keep_tube=False,
+                               violation_distance=False, stop_at_first_violation=True)  # fmt: skip
+    if res.verdict is Verdict.UNDECIDED and options.reach_fallback is not None:  # the reach failed: the precise one
+        res = reachset_conformance(model, case, W, V, options=options.reach_fallback, keep_tube=False,
+                                   violation_distance=False, stop_at_first_violation=True)  # fmt: skip
+    return res

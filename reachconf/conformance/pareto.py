@@ -9,18 +9,23 @@ another in every channel: a sampled Pareto front.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+import threading
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from reachconf.checks import check_options, check_workers
-from reachconf.conformance.synthesis import SynthesisOptions, reachset_check
+from reachconf.conformance.alpha import reachset_check
+from reachconf.conformance.synthesis import SynthesisOptions
 from reachconf.conformance.trace import trace_conformance
 from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.cases import suite_cases
 from reachconf.io.results import JsonResult
 from reachconf.model.core import require_model
-from reachconf.runner import run_cases
+from reachconf.model.shipping import prepare_model
+from reachconf.reach_options import ReachOptions
+from reachconf.runner.pool import progress_bar, use_pool
 from reachconf.sets.convert import as_box
 from reachconf.sets.core import Interval
 
@@ -42,6 +47,8 @@ class ParetoFront(JsonResult):
     disturbance_names : tuple of str
     check : str
         "reachset" or "trace".
+    log : list of str
+        Events of the workers during the run (lost workers, restarts).
     """
 
     boxes: list
@@ -49,6 +56,7 @@ class ParetoFront(JsonResult):
     start: Interval
     disturbance_names: tuple
     check: str
+    log: list = field(default_factory=list)
 
     @property
     def widths(self) -> np.ndarray:
@@ -58,13 +66,15 @@ class ParetoFront(JsonResult):
     def to_dict(self):
         """Channel names, the start box and the front (each box with its channel order)."""
         return {"disturbances": list(self.disturbance_names), "check": self.check, "start": self.start.to_list(),
-                "front": [{"box": b.to_list(), "order": list(o)} for b, o in zip(self.boxes, self.orders)]}  # fmt: skip
+                "front": [{"box": b.to_list(), "order": list(o)} for b, o in zip(self.boxes, self.orders)],
+                "log": list(self.log)}  # fmt: skip
 
     @classmethod
     def from_dict(cls, d: dict) -> "ParetoFront":
         """The front from :meth:`to_dict`."""
         return cls([Interval.from_list(e["box"]) for e in d["front"]], [tuple(e["order"]) for e in d["front"]],
-                   Interval.from_list(d["start"]), tuple(d["disturbances"]), d["check"])  # fmt: skip
+                   Interval.from_list(d["start"]), tuple(d["disturbances"]), d["check"],
+                   list(d.get("log", [])))  # fmt: skip
 
     def plot(self, ax=None):
         """Parallel coordinates: the channel widths of each box, normalised by the start box; returns the axes."""
@@ -105,7 +115,8 @@ def _dominated(w, others):
 
 
 def pareto_front(model, suite, V, W_start, check: str = "reachset", iterations: int = 8, orders=None,
-                 options: SynthesisOptions | None = None, workers=None, scheduler=None) -> ParetoFront:  # fmt: skip
+                 options: SynthesisOptions | None = None, workers=None, scheduler=None, pool=None,
+                 progress=None) -> ParetoFront:  # fmt: skip
     """Sample the Pareto front of conformant boxes by per-channel shrinking.
 
     Parameters
@@ -118,50 +129,90 @@ def pareto_front(model, suite, V, W_start, check: str = "reachset", iterations: 
         Bisection steps per channel.
     orders : list of sequences of int, optional
         Channel orders to try; default: the q rotations of ``0..q-1``.
+    workers, scheduler : see :func:`reachconf.runner.run_cases`
+        Used when no ``pool`` is given: a pool for this call only.
+    pool : reachconf.runner.Pool, optional
+        The run's pool: every check of every case is one of its tasks (the
+        orders are searched at once when it is parallel; a check stops at
+        the first case that fails it).
+    progress : bool, optional
+        Progress bar of the checks.
 
     Returns
     -------
     ParetoFront
-        The non-dominated boxes found (each verified conformant).
+        The non-dominated boxes found (each verified conformant), with the
+        pool's events of the run in ``log``.
     """
     require_model(model, "pareto_front")
     options = check_options(options, SynthesisOptions, "pareto_front")
     workers = check_workers(workers, "pareto_front: workers")
     if check not in ("reachset", "trace"):
         raise OptionsError(f"check must be 'reachset' or 'trace', got {check!r}")
+    if int(iterations) != iterations or iterations < 1:
+        raise OptionsError(f"iterations must be a positive integer, got {iterations!r}")
     Vb = as_box(V, model.p, "V")
     Vbox = Interval(Vb.lo, Vb.hi)
     Wb = as_box(W_start, model.q, "W_start")
     W_start = Interval(Wb.lo, Wb.hi)
     cases = suite_cases(suite, "pareto_front")
     q = model.q
-    job_fn = _reachset_job if check == "reachset" else _trace_job
-
-    def ok(W):
-        jobs = [(model, case, W, Vbox, options) for case in cases]
-        return all(run_cases(job_fn, jobs, workers=workers, scheduler=scheduler, progress=False))
-
-    if not ok(W_start):
-        raise ConformanceError(f"W_start is not {check} conformant for every case; start from a conformant box")
     if orders is None:
         orders = [tuple((k + i) % q for i in range(q)) for k in range(q)]
-    c = W_start.center
-    boxes, used = [], []
-    for order in orders:
-        r = W_start.radius.copy()
-        for ch in order:
-            lo, hi = 0.0, 1.0
-            for _ in range(iterations):
-                mid = 0.5 * (lo + hi)
-                trial = r.copy()
-                trial[ch] = r[ch] * mid
-                if ok(Interval(c - trial, c + trial)):
-                    hi = mid
-                else:
-                    lo = mid
-            r[ch] = r[ch] * hi
-        boxes.append(Interval(c - r, c + r))
-        used.append(tuple(order))
+    orders = [tuple(int(ch) for ch in o) for o in orders]
+    if any(not 0 <= ch < q for o in orders for ch in o):
+        raise OptionsError(f"orders must list channels 0..{q - 1}, got {orders!r}")
+    with use_pool(pool, workers, scheduler) as p:
+        return _front(model, cases, Vbox, W_start, check, int(iterations), orders, options, p, progress)
+
+
+def _front(model, cases, Vbox, W_start, check, iterations, orders, options, pool, progress):
+    mark = len(pool.log)
+    if check == "reachset":
+        prepare_model(pool, model, (options.reach or ReachOptions(), options.reach_fallback))
+    job_fn = _reachset_job if check == "reachset" else _trace_job
+    bar = progress_bar(1 + iterations * sum(len(o) for o in orders), "pareto", progress, unit="check")
+    lock = threading.Lock()
+    active = [len(orders)]
+    failing = list(range(len(cases)))  # cases that failed a check come first next time (shared by the orders)
+
+    def ok(W, stop=None):
+        with lock:
+            order = list(failing)
+            batch = max(1, math.ceil(pool.size / max(active[0], 1)))
+        bad = pool.first_failures(job_fn, [(model, cases[i], W, Vbox, options) for i in order], batch=batch, stop=stop)
+        with lock:
+            bar.update()
+            if bad:
+                first = [order[i] for i, _ in bad]
+                failing[:] = first + [j for j in failing if j not in first]
+        return not bad
+
+    def search(order, stop):
+        try:
+            c, r = W_start.center, W_start.radius.copy()
+            for ch in order:
+                lo, hi = 0.0, 1.0
+                for _ in range(iterations):
+                    mid = 0.5 * (lo + hi)
+                    trial = r.copy()
+                    trial[ch] = r[ch] * mid
+                    if ok(Interval(c - trial, c + trial), stop):
+                        hi = mid
+                    else:
+                        lo = mid
+                r[ch] = r[ch] * hi
+            return Interval(c - r, c + r)
+        finally:
+            with lock:
+                active[0] -= 1
+
+    try:
+        if not ok(W_start):
+            raise ConformanceError(f"W_start is not {check} conformant for every case; start from a conformant box")
+        boxes = pool.each(search, orders)
+    finally:
+        bar.close()
     widths = [b.hi - b.lo for b in boxes]
     keep = []
     for i, w in enumerate(widths):
@@ -171,4 +222,5 @@ def pareto_front(model, suite, V, W_start, check: str = "reachset", iterations: 
         if any(np.allclose(w, widths[j]) for j in keep):
             continue
         keep.append(i)
-    return ParetoFront([boxes[i] for i in keep], [used[i] for i in keep], W_start, tuple(model.disturbance_names), check)
+    return ParetoFront([boxes[i] for i in keep], [orders[i] for i in keep], W_start, tuple(model.disturbance_names),
+                       check, pool.log_since(mark))  # fmt: skip

@@ -16,22 +16,22 @@ over all of its cases, giving ``W_RC,Mnvr`` (Table 6).
 from __future__ import annotations
 
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from reachconf.checks import check_field_types, check_options, check_workers
-from reachconf.conformance.alpha import alpha_search
+from reachconf.conformance.alpha import alpha_search, reachset_check
 from reachconf.conformance.bounds import minimize_box, step1_trace
-from reachconf.conformance.reachset import reachset_conformance
+from reachconf.conformance.merge import merge_groups
 from reachconf.conformance.trace import TraceOptions
 from reachconf.errors import OptionsError
 from reachconf.io.cases import suite_cases
 from reachconf.io.results import JsonResult
 from reachconf.model.core import require_model
+from reachconf.model.shipping import prepare_model
 from reachconf.reach_options import ReachOptions
-from reachconf.runner import process_pool, run_cases
+from reachconf.runner.pool import Interrupted, WorkersLost, use_pool
 from reachconf.sets.convert import as_box
 from reachconf.sets.core import Interval
 from reachconf.verdict import Verdict, overall_verdict
@@ -199,6 +199,11 @@ class SynthesisResult(JsonResult):
     group_verdict : dict group -> Verdict
         As ``group_conformant``, with ``UNDECIDED`` where the merge failed
         because a reach failed (not because a measurement left its set).
+    log : list of str
+        Events of the workers during the run (lost workers, restarts); empty
+        when nothing happened.
+    merge_seconds : float
+        Wall time of the merge (all groups; they run at once on a parallel pool).
     """
 
     cases: dict
@@ -210,6 +215,8 @@ class SynthesisResult(JsonResult):
     seconds: float
     group_seconds: dict = field(default_factory=dict)
     group_verdict: dict = field(default_factory=dict)
+    log: list = field(default_factory=list)
+    merge_seconds: float = 0.0
 
     def __post_init__(self):
         for g, ok in self.group_conformant.items():
@@ -234,6 +241,8 @@ class SynthesisResult(JsonResult):
             "group_verdict": {g: v.value for g, v in self.group_verdict.items()},
             "group_seconds": self.group_seconds,
             "seconds": self.seconds,
+            "merge_seconds": self.merge_seconds,
+            "log": list(self.log),
         }
 
     @classmethod
@@ -243,7 +252,8 @@ class SynthesisResult(JsonResult):
                    {g: Interval.from_list(W) for g, W in d["groups"].items()}, dict(d["group_alpha"]),
                    {g: bool(ok) for g, ok in d["group_conformant"].items()}, Interval.from_list(d["V"]),
                    tuple(d["disturbances"]), float(d["seconds"]), dict(d.get("group_seconds", {})),
-                   dict(d.get("group_verdict", {})))  # fmt: skip
+                   dict(d.get("group_verdict", {})), list(d.get("log", [])),
+                   float(d.get("merge_seconds", 0.0)))  # fmt: skip
 
     def plot(self, ax=None):
         """``W_RC,Mnvr`` per group: one axes per disturbance channel, a bar per group; returns the axes.
@@ -282,31 +292,6 @@ class SynthesisResult(JsonResult):
 
     def __str__(self):
         return self.table()
-
-
-def reachset_check(model, case, W, V, options):
-    """The reachset-conformance check of the α-searches: eq. 43 from the initial set of eq. 67.
-
-    Stops at the first violation; when the reach with ``options.reach``
-    fails (the set explodes), tries ``options.reach_fallback`` if given.
-
-    Parameters
-    ----------
-    model : Model
-    case : TestCase
-    W, V : Interval
-    options : SynthesisOptions
-
-    Returns
-    -------
-    ReachsetResult
-    """
-    res = reachset_conformance(model, case, W, V, options=options.reach, keep_tube=False,
-                               violation_distance=False, stop_at_first_violation=True)  # fmt: skip
-    if res.verdict is Verdict.UNDECIDED and options.reach_fallback is not None:  # the reach failed: the precise one
-        res = reachset_conformance(model, case, W, V, options=options.reach_fallback, keep_tube=False,
-                                   violation_distance=False, stop_at_first_violation=True)  # fmt: skip
-    return res
 
 
 def _synth_case(job) -> CaseSynthesis:
@@ -362,37 +347,8 @@ def _synth_case(job) -> CaseSynthesis:
                          trace_ok, message, trials, start.method, step1_reason, verdict)  # fmt: skip
 
 
-def _early_exit_check(model, members, Vbox, options, run_batch, batch, order, failed=None):
-    """``check(W)`` for the merge: all members conformant, in batches, stopping at the first failure.
-
-    ``order`` (indices into ``members``, likeliest failure first) is updated so
-    that a member that failed is checked first next time.  ``failed`` (a
-    list) receives the verdicts of the members that failed the last check.
-    """
-    failed = [] if failed is None else failed
-
-    def check(W):
-        failed.clear()
-        for i in range(0, len(order), batch):
-            idx = order[i : i + batch]
-            res = run_batch([(model, members[j][0], W, Vbox, options) for j in idx])
-            bad = [j for j, v in zip(idx, res) if Verdict(v) != Verdict.CONFORMANT]
-            if bad:
-                failed.extend(Verdict(v) for v in res if Verdict(v) != Verdict.CONFORMANT)
-                order[:] = bad + [j for j in order if j not in bad]
-                return False
-        return True
-
-    return check
-
-
-def _check_job(job) -> Verdict:
-    model, case, W, V, options = job
-    return reachset_check(model, case, W, V, options).verdict
-
-
 def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, workers=None, scheduler=None,
-                 progress=None, executor=None) -> SynthesisResult:  # fmt: skip
+                 progress=None, executor=None, pool=None) -> SynthesisResult:  # fmt: skip
     """Minimal reachset-conformant disturbance boxes per case and per group (section 4.3.2).
 
     Parameters
@@ -402,12 +358,24 @@ def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, worke
     V : Interval
         Measurement-error box.
     options : SynthesisOptions
-    workers, scheduler, executor : see :func:`reachconf.runner.run_cases`
-        ``executor`` reuses a running pool (``workers`` is then ignored).
+    workers, scheduler : see :func:`reachconf.runner.run_cases`
+        Used when no ``pool`` is given: a pool for this call only.
+    pool : reachconf.runner.Pool, optional
+        The run's pool: the cases and every α-check of the merge are its
+        tasks (``executor`` is the older name).
+    progress : bool, optional
+        Progress bars of the cases and of the merge.
 
     Returns
     -------
     SynthesisResult
+        With ``log``: lost workers and other events of the pool during the run.
+
+    Raises
+    ------
+    Interrupted, WorkersLost
+        On Ctrl-C, or when no worker is left: ``.partial`` holds the finished
+        cases' :class:`CaseSynthesis` (``None`` for the others), in suite order.
     """
     require_model(model, "synthesize_W")
     options = check_options(options, SynthesisOptions, "synthesize_W")
@@ -416,69 +384,43 @@ def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, worke
     t_all = time.perf_counter()
     Vb = as_box(V, model.p, "V")
     Vbox = Interval(Vb.lo, Vb.hi)
-    if executor is not None:
-        return _synthesize(model, cases, Vbox, options, executor, scheduler, progress, t_all)
-    pool = process_pool(min(int(workers), len(cases))) if workers and workers > 1 and scheduler is None else None
-    try:
-        return _synthesize(model, cases, Vbox, options, pool, scheduler, progress, t_all)
-    finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)
+    if workers is not None and pool is None and executor is None:
+        workers = min(int(workers), max(len(cases), 1))
+    with use_pool(pool if pool is not None else executor, workers, scheduler, preload=PRELOAD) as p:
+        return _synthesize(model, cases, Vbox, options, p, progress, t_all)
 
 
-def _synthesize(model, cases, Vbox, options, pool, scheduler, progress, t_all):
+#: modules the local worker processes load once (their server imports them before forking the workers)
+PRELOAD = ("reachconf.conformance.synthesis", "reachconf.conformance.pareto")
+
+
+def _synthesize(model, cases, Vbox, options, pool, progress, t_all):
+    mark = len(pool.log)
+    prepare_model(pool, model, (options.reach or ReachOptions(), options.reach_fallback))
     # longest cases first: fewer idle workers at the end
     longest = sorted(range(len(cases)), key=lambda i: -np.size(cases[i].t))
     jobs = [(model, cases[i], Vbox, options) for i in longest]
-    done = run_cases(_synth_case, jobs, scheduler=scheduler, desc="synthesis", progress=progress, executor=pool)
     per_case = [None] * len(cases)
+    try:
+        done = pool.map(_synth_case, jobs, desc="synthesis", progress=progress)
+    except (Interrupted, WorkersLost) as exc:
+        for i, cs in zip(longest, exc.partial or []):
+            per_case[i] = cs
+        exc.partial = per_case
+        raise
     for i, cs in zip(longest, done):
         per_case[i] = cs
     result_cases = {c.name: c for c in per_case}
     groups, galpha, gok, gsec, gver = {}, {}, {}, {}, {}
+    t_merge = time.perf_counter()
     if options.merge:
-        by_group: dict = {}
-        for case, cs in zip(cases, per_case):
-            by_group.setdefault(case.group, []).append((case, cs))
-        if pool is not None and scheduler is None and len(by_group) > 1:
-            # every group's α-search in its own thread, all feeding the one process pool
-            batch = max(1, getattr(pool, "_max_workers", 1))
-
-            def run_batch(batch_jobs):
-                futures = [pool.submit(_check_job, j) for j in batch_jobs]
-                return [f.result() for f in futures]
-
-            with ThreadPoolExecutor(len(by_group)) as threads:
-                futs = {g: threads.submit(_merge_group, model, m, Vbox, options, run_batch, batch)
-                        for g, m in by_group.items()}  # fmt: skip
-                for g, f in futs.items():
-                    groups[g], galpha[g], gok[g], gsec[g], gver[g] = f.result()
-        else:
-            batch = 1 if scheduler is None else 10**9
-
-            def run_batch(batch_jobs):
-                return run_cases(_check_job, batch_jobs, scheduler=scheduler, progress=False)
-
-            for g, members in by_group.items():
-                groups[g], galpha[g], gok[g], gsec[g], gver[g] = _merge_group(model, members, Vbox, options, run_batch,
-                                                                              batch)  # fmt: skip
+        try:
+            groups, galpha, gok, gsec, gver = merge_groups(model, cases, per_case, Vbox, options, pool, progress)
+        except KeyboardInterrupt:  # the cases are finished: keep them
+            raise Interrupted(per_case) from None
+        except WorkersLost as exc:
+            exc.partial = per_case
+            raise
+    t_merge = time.perf_counter() - t_merge
     return SynthesisResult(result_cases, groups, galpha, gok, Vbox, tuple(model.disturbance_names),
-                           time.perf_counter() - t_all, gsec, gver)  # fmt: skip
-
-
-def _merge_group(model, members, Vbox, options, run_batch, batch):
-    """``W_RC,Mnvr`` of one group: the α-search on the hull of its cases' ``W_RC`` over all of them."""
-    t0 = time.perf_counter()
-    lo = np.min([cs.W_RC.lo for _, cs in members], axis=0)
-    hi = np.max([cs.W_RC.hi for _, cs in members], axis=0)
-    hull = Interval(lo, hi)
-    # the member most likely to fail is checked first and a check stops at the first failure
-    order = sorted(range(len(members)), key=lambda j: (members[j][1].conformant, -members[j][1].alpha))
-    failed = []
-    check = _early_exit_check(model, members, Vbox, options, run_batch, batch, order, failed)
-    iterations = options.merge_iterations or options.alpha_iterations
-    alpha, W, ok, _ = alpha_search(check, hull, iterations, options.alpha_max)
-    # not conformant if a member's measurement left its set at the largest α, undecided if only reaches failed
-    verdict = Verdict.CONFORMANT if ok else (Verdict.NOT_CONFORMANT if Verdict.NOT_CONFORMANT in failed
-                                             else Verdict.UNDECIDED)  # fmt: skip
-    return W, alpha, ok, time.perf_counter() - t0, verdict
+                           time.perf_counter() - t_all, gsec, gver, pool.log_since(mark), t_merge)  # fmt: skip

@@ -44,7 +44,6 @@ import hashlib
 import importlib.metadata
 import importlib.util
 import io
-import os
 import re
 import sys
 import time
@@ -62,6 +61,7 @@ from reachconf.io.atomic import atomic_write
 from reachconf.model.printers import IntervalEmitter, point_code
 from reachconf.model.remainders import module_tape, taylor_section, tensor_section
 from reachconf_kernels.taylor import range_enclosure
+from reachconf.runner.caches import models_cache_dir
 
 __all__ = ["CompiledModel", "compile_model", "cache_dir", "model_hash", "generate_source", "package_version",
            "GENERATOR_VERSION", "REMAINDERS"]  # fmt: skip
@@ -73,17 +73,8 @@ REMAINDERS = ("taylor", "tensor")
 
 
 def cache_dir() -> Path:
-    """Folder of generated model modules (``$REACHCONF_CACHE`` or the user cache folder)."""
-    env = os.environ.get("REACHCONF_CACHE")
-    if env:
-        path = Path(env).expanduser()
-    else:
-        import platformdirs
-
-        path = Path(platformdirs.user_cache_dir("reachconf"))
-    path = path / "models"
-    path.mkdir(parents=True, exist_ok=True)
-    return path
+    """Folder of generated model modules (``$REACHCONF_CACHE/models`` or the user cache folder's ``models``)."""
+    return models_cache_dir()
 
 
 @dataclass

@@ -33,8 +33,11 @@ The same model written as a class::
 
 from __future__ import annotations
 
+import copy
+import hashlib
 import keyword
 import math
+import pickle
 from collections.abc import Callable, Mapping, Sequence
 from types import MappingProxyType
 
@@ -43,8 +46,12 @@ import sympy as sp
 
 from reachconf.errors import ModelError
 from reachconf.model.codegen import compile_model
+from reachconf.model.recipe import rebuild_model
 
 __all__ = ["Model", "Symbols", "require_model"]
+
+#: per-process caches that are rebuilt, never pickled
+_NOT_SHIPPED = ("_affine_cache", "_recipe")
 
 
 class Symbols:
@@ -369,7 +376,7 @@ class Model:
 
     def __getstate__(self):
         # compiled code and caches stay behind (rebuilt from the disk cache in the new process)
-        state = {k: v for k, v in self.__dict__.items() if not (k.startswith("_compiled_") or k == "_affine_cache")}
+        state = {k: v for k, v in self.__dict__.items() if not (k.startswith("_compiled_") or k in _NOT_SHIPPED)}
         state["params"] = dict(self.params)
         return state
 
@@ -377,6 +384,42 @@ class Model:
         state = dict(state)
         state["params"] = MappingProxyType(state["params"])
         self.__dict__.update(state)
+
+    @property
+    def structure_key(self) -> str:
+        """Hash of what the compiled code depends on: class, names and expressions (not the parameter values).
+
+        Models with equal keys share their compiled code; a worker process
+        keeps the models it built under this key (see :func:`rebuild_model`).
+        """
+        key = self.__dict__.get("_structure_key")
+        if key is None:
+            h = hashlib.sha256(f"{type(self).__module__}.{type(self).__qualname__}".encode())
+            for part in (self.name, self.state_names, self.input_names, self.disturbance_names, self.param_names,
+                         self.output_names, *(sp.srepr(e) for e in self.f_expr + self.h_expr)):  # fmt: skip
+                h.update(repr(part).encode() + b"\0")
+            key = self.__dict__["_structure_key"] = h.hexdigest()[:24]
+        return key
+
+    def __reduce__(self):
+        # the model travels as a build recipe: its class, its structure key, its parameter values and its
+        # pickled names and expressions (made once per model); a worker that has built a model with the same
+        # key keeps and reuses it with its compiled code, without unpickling the expressions again
+        recipe = self.__dict__.get("_recipe")
+        if recipe is None:
+            state = self.__getstate__()
+            del state["params"]
+            recipe = self.__dict__["_recipe"] = pickle.dumps(state, protocol=pickle.HIGHEST_PROTOCOL)
+        cls = type(self) if type(self).__module__ != "__main__" else Model  # workers do not import the script
+        return (rebuild_model, (cls, self.structure_key, dict(self.params), recipe))
+
+    def __copy__(self):
+        return self.with_params()
+
+    def __deepcopy__(self, memo):
+        new = object.__new__(type(self))
+        new.__setstate__(copy.deepcopy(self.__getstate__(), memo))
+        return new
 
     def compiled(self, order: int = 2, remainder: str = "taylor"):
         """The compiled functions of this model (see :func:`reachconf.model.codegen.compile_model`).
