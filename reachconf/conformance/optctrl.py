@@ -145,7 +145,8 @@ class TraceQP:
     def simulate(self, x0, W):
         """States on the grid from ``x0`` with the disturbance trace ``W`` (RK4, ``substeps`` per interval)."""
         Wf = np.ascontiguousarray(np.vstack([W, W[-1:]])) if W.shape[0] else np.zeros((self.tf.size, 0))
-        return rk4_trace(self.model.compiled().f, np.ascontiguousarray(x0, dtype=float), self.Uf, Wf, self.tf,
+        x0 = np.array(x0, dtype=float)  # a writable copy: the kernel's signature takes no read-only array
+        return rk4_trace(self.model.compiled().f, x0, self.Uf, Wf, self.tf,
                          self.model.param_vector, self.substeps)  # fmt: skip
 
     def outputs(self, X):

@@ -112,3 +112,11 @@ def test_riccati_kernel_matches_the_general_solver(problem):
                          np.full(n, 1e-6), np.full(q, 2.0), np.zeros((J, q)), Ct, ylo, yhi, np.full((J, q), -1.0),
                          np.full((J, q), 1.0), True, 1e-8, 30)  # fmt: skip
     assert st != 0
+
+
+def test_read_only_start_state_is_accepted(problem):
+    """A TestCase's arrays are read-only: ``simulate(case.Y[0], W)`` must work (it failed in the compiled kernel)."""
+    model, qp, x0, W = problem
+    frozen = np.array(x0)
+    frozen.flags.writeable = False
+    np.testing.assert_array_equal(qp.simulate(frozen, W), qp.simulate(np.array(x0), W))
