@@ -14,11 +14,13 @@ projects the whole run from the first window and stops before the rest.
 from __future__ import annotations
 
 import os
+import sys
 import time
 
 from reachconf.errors import ResourceError
 
-__all__ = ["available_memory", "check_memory", "TimeBudget", "format_bytes"]
+__all__ = ["available_memory", "check_memory", "TimeBudget", "format_bytes", "tube_bytes_per_step",
+           "progress_bar"]
 
 
 def format_bytes(n: float) -> str:
@@ -90,6 +92,33 @@ def check_memory(what: str, samples: int, per_sample: float, fixed: float = 0.0,
             + (f". {hint}" if hint else "")
         )
     return need
+
+
+def tube_bytes_per_step(n: int, m: int, zonotope_order: float) -> tuple[float, float]:
+    """Memory of a kept reach tube: ``(bytes per integration step, fixed bytes)``.
+
+    Two zonotopes per step (time point and time interval) of at most
+    ``n (order + 1) + 1`` generators, in the kernel's arrays and again as set
+    objects, plus the step grid and inputs; fixed: 64 MB of working memory.
+    """
+    gmax = int(n * max(float(zonotope_order), 1.0)) + n + 1
+    per_set = 8.0 * n * (gmax + 2)
+    return 2 * 2 * per_set + 8 * (m + 4 * n), 64e6
+
+
+def progress_bar(enabled, total: float, desc: str, unit: str, auto_above: float, terminal_only: bool = False):
+    """A tqdm progress bar, or None.
+
+    ``enabled`` True/False, or None: a bar when ``total`` exceeds
+    ``auto_above`` (and, with ``terminal_only``, stderr is a terminal).
+    """
+    if enabled is None:
+        enabled = total > auto_above and sys.stderr is not None and (not terminal_only or sys.stderr.isatty())
+    if not enabled:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=int(total), desc=desc, unit=unit, unit_scale=unit == "sample", leave=False, mininterval=0.5)
 
 
 class TimeBudget:

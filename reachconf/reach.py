@@ -18,13 +18,15 @@ All sets are sound enclosures: no trajectory of ``x' = f(x, u, w)`` with
 from __future__ import annotations
 
 import math
-import sys
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
+from reachconf.budget import check_memory, progress_bar, tube_bytes_per_step
+from reachconf.checks import check_options
 from reachconf.errors import OptionsError, ReachError
+from reachconf.model.core import require_model
 from reachconf.reach_options import ReachOptions
 from reachconf.sets.convert import as_zonotope
 from reachconf.sets.core import Zonotope
@@ -71,10 +73,7 @@ def _sample_times(times) -> np.ndarray:
 
 def _step_grid(samples: np.ndarray, time_step: float | None, scalar_horizon: bool):
     """Sub-steps of every sample interval: (dts, t_start, sample_of_step, step_of_sample)."""
-    horizon = samples[-1] - samples[0]
-    if time_step is None:
-        time_step = horizon / 100.0 if scalar_horizon else min(horizon / 100.0, float(np.min(np.diff(samples))))
-    counts = np.maximum(1, np.ceil(np.diff(samples) / time_step - 1e-9).astype(np.int64))
+    counts = _step_counts(samples, time_step, scalar_horizon)
     dts = np.repeat(np.diff(samples) / counts, counts)
     sample_of_step = np.repeat(np.arange(samples.size - 1), counts)
     offsets = np.concatenate([[0], np.cumsum(counts)])
@@ -82,11 +81,21 @@ def _step_grid(samples: np.ndarray, time_step: float | None, scalar_horizon: boo
     return dts, t_start, sample_of_step, offsets
 
 
+def _step_counts(samples: np.ndarray, time_step: float | None, scalar_horizon: bool) -> np.ndarray:
+    horizon = samples[-1] - samples[0]
+    if time_step is None:
+        time_step = horizon / 100.0 if scalar_horizon else min(horizon / 100.0, float(np.min(np.diff(samples))))
+    return np.maximum(1, np.ceil(np.diff(samples) / time_step - 1e-9).astype(np.int64))
+
+
 def integration_steps(times, options=None) -> int:
-    """How many integration steps :func:`reach` takes over ``times`` with ``options`` (for memory estimates)."""
+    """How many integration steps :func:`reach` takes over ``times`` with ``options`` (for memory estimates).
+
+    Counted without building the step grid (a tiny ``time_step`` is caught before it allocates).
+    """
     samples = _sample_times(times)
     step = None if options is None else options.time_step
-    return int(_step_grid(samples, step, np.ndim(times) == 0)[0].size)
+    return int(_step_counts(samples, step, np.ndim(times) == 0).sum())
 
 
 def _input_table(model, inputs, samples, t_start, sample_of_step, per_step: bool) -> np.ndarray:
@@ -123,16 +132,6 @@ def _input_table(model, inputs, samples, t_start, sample_of_step, per_step: bool
         row = int(np.nonzero(~np.all(np.isfinite(U), axis=1))[0][0])
         raise ReachError(f"inputs contain NaN or inf (step {row})")
     return np.array(U, order="C")  # writeable copy
-
-
-def _progress(enabled, total, desc):
-    if enabled is None:
-        enabled = sys.stderr.isatty() and total > 2000
-    if not enabled:
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=total, desc=desc, unit="step", leave=False)
 
 
 # ---------------------------------------------------------------------------
@@ -204,7 +203,15 @@ def reach(model, X0, times, inputs=None, W=None, options: ReachOptions | None = 
     Raises
     ------
     SetError, ReachError, OptionsError
+    ResourceError
+        Before any work, if the tube would need more memory than is available
+        (:func:`reachconf.reach_stream.reach_streamed` keeps it bounded).
     """
+    require_model(model, "reach")
+    options = check_options(options, ReachOptions, "reach")
+    per, fixed = tube_bytes_per_step(model.n, model.m, options.zonotope_order)
+    check_memory(f"reach of model {model.name!r}", integration_steps(times, options), per, fixed,
+                 hint="reachconf.reach_stream.reach_streamed computes it in bounded memory")  # fmt: skip
     return ReachTube.from_run(reach_run(model, X0, times, inputs, W, options), model)
 
 
@@ -339,7 +346,7 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None,
     pending = [(0, np.array(Z0.center), np.array(Z0.generators), 0)]  # writeable copies
     splits = 0
     chunk = max(50, S // 50)
-    bar = _progress(options.progress, S, f"reach {model.name}")
+    bar = progress_bar(options.progress, S, f"reach {model.name}", "step", 2000, terminal_only=True)
     try:
         while pending:
             start, c, G, depth = pending.pop()
@@ -401,7 +408,7 @@ def _reach_streamed(model, options, Z0, Wz, samples, step_offsets, t_start, dts,
     t0 = time.perf_counter()
     pending = [(0, np.array(Z0.center), np.array(Z0.generators), 0)]
     splits = 0
-    bar = _progress(options.progress, S, f"reach {model.name}")
+    bar = progress_bar(options.progress, S, f"reach {model.name}", "step", 2000, terminal_only=True)
     wc, WG = np.array(Wz.center), np.array(Wz.generators)
     try:
         while pending:

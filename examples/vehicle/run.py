@@ -172,6 +172,9 @@ def markdown(result) -> str:
             cells = [box_] * len(names) if isinstance(box_, str) else [f"[{a:.3g}, {b:.3g}]" for a, b in box_]
             lines.append(f"| {g} | " + " | ".join(cells) + " |")
         lines.append("")
+    if "table6" not in result:  # --only-trace-tables
+        return "\n".join(lines + ["## Timings [s]", "", "| step | seconds |", "|---|---|"]
+                         + [f"| {k} | {v:.1f} |" for k, v in result["timings"].items()]) + "\n"
     names = [f"w{i}" for i in range(1, 7)]
     lines += ["## Table 6 analogue: W_RC,Mnvr of the closed-loop model with actuators", "",
               "| group | " + " | ".join(names) + " | α | conformant | runs conformant alone |", "|---" * 10 + "|"]
@@ -221,6 +224,8 @@ def main(argv=None):
     ap.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://host:port instead of --workers")
     ap.add_argument("--compare-requested", action="store_true",
                     help="also f_B driven by the requests (always with --quick; about 85 s on the full campaign)")
+    ap.add_argument("--only-trace-tables", action="store_true",
+                    help="stop after identification and Tables 3 and 4 (100 Hz and 10 Hz side by side)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -295,6 +300,8 @@ def _run(args, out, suite, plain, pool, timings, result):
         timings["table4_fB_requested"] = time.perf_counter() - t0
     print(f"2. Table 3 ({timings['table3']:.1f} s at 100 Hz, {timings['table3_10hz']:.1f} s at 10 Hz), Table 4 "
           f"({timings['table4']:.1f} s, {timings['table4_10hz']:.1f} s)", flush=True)  # fmt: skip
+    if args.only_trace_tables:
+        return
 
     # 3. Table 6: closed-loop synthesis for all eight maneuvers
     t0 = time.perf_counter()

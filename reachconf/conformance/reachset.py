@@ -9,7 +9,7 @@ import numpy as np
 from scipy.optimize import linprog
 
 from reachconf.checks import check_options
-from reachconf.budget import TimeBudget, check_memory
+from reachconf.budget import TimeBudget, check_memory, tube_bytes_per_step
 from reachconf.errors import ConformanceError, ReachError
 from reachconf.io.cases import case_arrays
 from reachconf.io.results import JsonResult
@@ -327,12 +327,11 @@ def reach_bytes_per_step(model, options, keep_tube) -> tuple[float, float]:
     set objects.  Streamed: the per-sample verdicts and inputs; fixed: one
     chunk of 500 steps.
     """
-    n = model.n
-    gmax = int(n * max(options.zonotope_order, 1.0)) + n + 1
-    per_set = 8.0 * n * (gmax + 2)
+    per_tube, fixed = tube_bytes_per_step(model.n, model.m, options.zonotope_order)
     if keep_tube:
-        return 2 * 2 * per_set + 8 * (model.m + 4 * n), 64e6
-    return 8.0 * (model.m + 3) + 2, 501 * 2 * per_set + 64e6
+        return per_tube, fixed
+    per_set = per_tube / 4  # one zonotope
+    return 8.0 * (model.m + 3) + 2, 501 * 2 * per_set + fixed
 
 
 def reach_plan(model, options, case, stream_bytes: float) -> bool:

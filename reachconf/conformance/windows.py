@@ -25,10 +25,10 @@ interval hulls of W and V are over every sample.
 from __future__ import annotations
 
 import math
-import sys
 
 import numpy as np
 
+from reachconf.budget import progress_bar
 from reachconf.conformance.optctrl import NO_TRACE, fine_grid, optctrl_trace
 from reachconf.errors import ConformanceError
 from reachconf.model.outputs import affine_output, evaluate_outputs, output_index_of_states
@@ -61,16 +61,6 @@ def window_plan(K: int, window: int, overlap: int):
         plan.append((a, c, b))
         a = c
     return plan
-
-
-def _bar(progress, total, desc):
-    if progress is None:
-        progress = total >= 50_000 and sys.stderr is not None
-    if not progress:
-        return None
-    from tqdm.auto import tqdm
-
-    return tqdm(total=int(total), desc=desc, unit="sample", unit_scale=True, leave=False, mininterval=0.5)
 
 
 class WindowVerdict:
@@ -118,7 +108,7 @@ def verdict_in_windows(model, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, substeps,
     names_v = [nm if nm not in names_w else f"v:{nm}" for nm in model.output_names]
     x1 = np.array(x0, dtype=float)
     x2 = np.array(x0, dtype=float)
-    bar = _bar(progress, K, desc)
+    bar = progress_bar(progress, K, desc, "sample", 49_999)
     a = 0
     try:
         while True:
@@ -195,7 +185,7 @@ def disturbance_trace_in_windows(model, t, U, Y, Yx, W_lo, W_hi, V_lo, V_hi, opt
     records, messages = [], []
     starts = [np.array(x0, dtype=float)]  # the state at the start of each window
     x0_out = starts[0].copy()
-    bar = _bar(progress, K, f"DISTURBANCETRACE ({method})")
+    bar = progress_bar(progress, K, f"DISTURBANCETRACE ({method})", "sample", 49_999)
     anchor = None
     merged = 0  # windows joined to the failed one so far (at most MAX_BACKTRACK)
     j = 0
@@ -267,9 +257,24 @@ def _alg2_window(model, t, U, Y, W, plan, j, x_start, Ww, W_lo, W_hi, V_lo, V_hi
         known = min(plan[j - 1][2] - 1, b - 1) - a
         if known > 0:
             start[: known * r] = W[a * r : (a + known) * r]
-    return optctrl_trace(model, t[a:b], U[a:b], Y[a:b], W_lo, W_hi, V_lo, V_hi, x_start.copy(),
-                         np.clip(start, W_lo, W_hi) if q else start, options, x0_fixed=j > 0,
-                         scale=_robust_scale(Ww, q))  # fmt: skip
+    start = np.clip(start, W_lo, W_hi) if q else start
+    scale = _robust_scale(Ww, q)
+    x0, Wt, message, ok = optctrl_trace(model, t[a:b], U[a:b], Y[a:b], W_lo, W_hi, V_lo, V_hi, x_start.copy(), start,
+                                        options, x0_fixed=j > 0, scale=scale)  # fmt: skip
+    for reserve in ALG2_RESERVES:
+        if ok or NO_TRACE in message:
+            break
+        # not converged: the linearisation error (coarse samples) exceeds the 0.1 % of V kept in reserve; solve
+        # again from the last trace keeping more of V for it (the verdict simulates the result anyway)
+        x0, Wt, again, ok = optctrl_trace(model, t[a:b], U[a:b], Y[a:b], W_lo, W_hi, V_lo, V_hi,
+                                          x0.copy() if j == 0 else x_start.copy(), Wt, options, x0_fixed=j > 0,
+                                          reserve=reserve, scale=scale)  # fmt: skip
+        message += f"; again with {100 * (1 - reserve):g} % of V in reserve: {again}"
+    return x0, Wt, message, ok
+
+
+#: V's share Alg. 2 keeps for the QP (1 - reserve) when it does not converge with 0.1 %
+ALG2_RESERVES = (0.98, 0.9)
 
 
 def _robust_scale(Ww, q):

@@ -80,3 +80,18 @@ def test_bad_input_of_the_streamed_reach(setting):
         reach_streamed(model, X0, case.t[::-1], inputs=case.U, W=W_TRUE, options=OPTS)
     with pytest.raises(rc.OptionsError):
         make_long_case(10, maneuver="circle")
+
+
+def test_reach_checks_memory_before_the_work(setting, monkeypatch):
+    """rc.reach (the API, not only the CLI) refuses a tube that cannot fit, before any work."""
+    model, case, X0 = setting
+    # a tiny time step: about 2e9 steps (the count itself allocates nothing)
+    tiny = rc.ReachOptions(time_step=1e-8)
+    with pytest.raises(rc.ResourceError, match=r"reach of model 'bicycle_closed_loop': .* need about .*reach_streamed"):
+        rc.reach(model, X0, case.t - case.t[0], inputs=case.U, W=W_TRUE, options=tiny)
+    monkeypatch.setenv("REACHCONF_MEMORY_LIMIT", "1e6")
+    with pytest.raises(rc.ResourceError, match="nothing was computed"):
+        rc.reach(model, X0, case.t[:50] - case.t[0], inputs=case.U[:50], W=W_TRUE, options=OPTS)
+    monkeypatch.delenv("REACHCONF_MEMORY_LIMIT")
+    tube = rc.reach(model, X0, case.t[:50] - case.t[0], inputs=case.U[:50], W=W_TRUE, options=OPTS)
+    assert tube.bounds().shape[0] > 0
