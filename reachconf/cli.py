@@ -1,4 +1,4 @@
-"""Command line: ``reachconf {demo,reach,conform,synth,diagnose,plot}``.
+"""Command line: ``reachconf {demo,reach,conform,synth,pareto,diagnose,plot,warmup}``.
 
 Everything a command needs is checked before the work starts, in this
 order: the output paths (``--out`` is a folder or can be created, ``--json``
@@ -14,6 +14,8 @@ Exit statuses:
        the work)
 3      done, but some verdict is *undecided* (a reach failed, a trace
        diverged); the summary and the JSON say which and why
+4      no worker left (``reachconf.runner.WorkersLost``): the finished
+       cases went to a new file, as with Ctrl-C
 130    interrupted (Ctrl-C); partial results went to a new file
        (``<json>.partial.json`` or ``<out>/<command>.partial.json``), never
        over an earlier complete one
@@ -30,15 +32,19 @@ import sys
 import time
 from pathlib import Path
 
+from reachconf import commands
 from reachconf.errors import DataError, ReachconfError
 
-__all__ = ["main", "build_parser", "EXIT_OK", "EXIT_USER_ERROR", "EXIT_UNDECIDED", "EXIT_INTERRUPTED"]
+__all__ = ["main", "build_parser", "EXIT_OK", "EXIT_USER_ERROR", "EXIT_UNDECIDED", "EXIT_WORKERS_LOST",
+           "EXIT_INTERRUPTED"]  # fmt: skip
 
 EXIT_OK = 0
 #: a user error (bad run file, data, options, output path)
 EXIT_USER_ERROR = 2
 #: finished, but at least one verdict is undecided (or a reach failed)
 EXIT_UNDECIDED = 3
+#: no worker left on the cluster (finished cases saved as with Ctrl-C)
+EXIT_WORKERS_LOST = 4
 #: Ctrl-C
 EXIT_INTERRUPTED = 130
 
@@ -63,16 +69,6 @@ class _Run:
         self.outputs = outputs
         self.partial = None  # results so far (a dict filled as the command goes)
         self.undecided = False
-
-
-def _positive_int(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer (number of processes), got {value}")
-    return value
 
 
 def _select_cases(spec, args):
@@ -353,7 +349,7 @@ def build_parser() -> argparse.ArgumentParser:
             sp.add_argument("--case", action="append", help="only this test case (repeatable)")
         sp.add_argument("--json", help="write machine-readable results to this file")
         sp.add_argument("--out", help="folder for pictures and result files")
-        sp.add_argument("--workers", type=_positive_int, default=None, help="local worker processes (>= 1)")
+        sp.add_argument("--workers", type=commands.positive_int, default=None, help="local worker processes (>= 1)")
         sp.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://host:port")
         sp.add_argument("--time-limit", type=float, default=None, dest="time_limit",
                         help="seconds per case and kind; a run projected to take longer stops after its first part")  # fmt: skip
@@ -374,6 +370,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("diagnose", help="sim-to-real gap: where it lies, which effect causes it, how far W shrinks")
     common(sp)
     sp.set_defaults(fn=cmd_diagnose)
+    commands.add_commands(sub, common, {"warmup": commands.cmd_warmup, "pareto": lambda args, run: commands.cmd_pareto(
+        args, run, _load, _select_cases, _savefig)})  # fmt: skip
     sp = sub.add_parser("plot", help="plot a result (tube .npz, synthesis or Pareto JSON)")
     sp.add_argument("result")
     sp.add_argument("--out", help="folder for the PNG (default: next to the result)")
@@ -423,7 +421,7 @@ def _save_partial(run, exc) -> str:
     return f"; partial results in {target}"
 
 
-def _handle_interrupt(run, exc) -> int:
+def _handle_interrupt(run, exc, lost=False) -> int:
     old = signal.signal(signal.SIGINT, signal.SIG_IGN) if _main_thread() else None
     try:
         tail = _save_partial(run, exc)
@@ -432,8 +430,8 @@ def _handle_interrupt(run, exc) -> int:
     finally:
         if old is not None:
             signal.signal(signal.SIGINT, old)
-    print(f"reachconf: interrupted{tail}", file=sys.stderr)
-    return EXIT_INTERRUPTED
+    print(f"{_one_line(exc) if lost else 'reachconf: interrupted'}{tail}", file=sys.stderr)
+    return EXIT_WORKERS_LOST if lost else EXIT_INTERRUPTED
 
 
 def _caused_by_ctrl_c(exc: BaseException) -> bool:
@@ -469,6 +467,8 @@ def main(argv=None) -> int:
         try:
             return args.fn(args, run)
         except Exception as exc:
+            if type(exc).__name__ == "WorkersLost":  # reachconf.runner.WorkersLost: keep the finished cases
+                return _handle_interrupt(run, exc, lost=True)
             if not _caused_by_ctrl_c(exc):
                 raise
             return _handle_interrupt(run, exc)

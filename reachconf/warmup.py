@@ -47,7 +47,8 @@ def warm_up_target(target, orders=(2, 3)):
     """A model and what a run of it needs, from a run file (``.toml``) or a model name.
 
     Returns ``(model, reach_options, suite, V, synthesis_options)``: a run
-    file gives its own; a model name all ``orders`` and one simulated case.
+    file gives its own; a model name all ``orders`` and ``suite=None`` (one
+    simulated case is made once the model is built, see :func:`warm_up`).
     """
     if str(target).endswith(".toml"):
         spec = load_run(target)
@@ -60,7 +61,7 @@ def warm_up_target(target, orders=(2, 3)):
     model = resolve_model(str(target), where=f"warmup {target}")
     reach = tuple(ReachOptions(tensor_order=o) for o in orders)
     options = SynthesisOptions(reach=reach[0], reach_fallback=reach[-1] if len(reach) > 1 else None)
-    return model, reach, TestSuite([_synthetic_case(model)]), Interval(-np.ones(model.p), np.ones(model.p)), options
+    return model, reach, None, Interval(-np.ones(model.p), np.ones(model.p)), options
 
 
 def warm_up(targets, scheduler=None, orders=(2, 3), pool=None, log=print) -> dict:
@@ -85,16 +86,17 @@ def warm_up(targets, scheduler=None, orders=(2, 3), pool=None, log=print) -> dic
         ``{"here": {model: {...seconds...}}, "workers": {worker: {model: {...}}}}``.
     """
     report = {"here": {}, "workers": {}}
+    resolved = [warm_up_target(target, orders) for target in targets]  # every name and file checked first
     t0 = time.perf_counter()
     seconds = load_kernels()
     log(f"kernels: loaded in {seconds:.1f} s")
     prepared = []
-    for target in targets:
-        model, reach, suite, V, options = warm_up_target(target, orders)
+    for model, reach, suite, V, options in resolved:
         t1 = time.perf_counter()
         builds = model_builds(reach)
         comps = [model.compiled(order=o, remainder=r) for o, r in builds]
         built = time.perf_counter() - t1
+        suite = suite if suite is not None else TestSuite([_synthetic_case(model)])
         t1 = time.perf_counter()
         quick = dataclasses.replace(options, alpha_iterations=1, merge_iterations=1, step2_decimate=1)
         try:  # compiles every kernel a synthesis calls; the numbers do not matter
