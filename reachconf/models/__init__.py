@@ -10,6 +10,7 @@ name                                  what
 ``bicycle_closed_loop``               f_B with the tracking controller, eqs. 59/60
 ``bicycle_closed_loop_actuated``      the same with f_BX's actuators in the loop
 ``bicycle_closed_loop_rate_limited``  the same with a rate-limited steering actuator
+``single_track``                      dynamic single-track model at the CG, linear tyres (real car)
 ``wind_turbine``                      reduced NREL 5-MW turbine, eqs. 69, 77, 78, 80
 ``pedestrian_acc``                    acceleration-constrained pedestrian, eq. 73
 ``pedestrian_vel``                    velocity-constrained pedestrian, eq. 74
@@ -33,6 +34,7 @@ _REGISTRY = {
     "bicycle_closed_loop": "reachconf.models.vehicle",
     "bicycle_closed_loop_actuated": "reachconf.models.vehicle",
     "bicycle_closed_loop_rate_limited": "reachconf.models.vehicle",
+    "single_track": "reachconf.models.single_track_cg",
     "wind_turbine": "reachconf.models.windturbine",
     "pedestrian_acc": "reachconf.models.pedestrian",
     "pedestrian_vel": "reachconf.models.pedestrian",
