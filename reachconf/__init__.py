@@ -70,7 +70,7 @@ _LAZY = {
     "pareto_front": "reachconf.conformance.pareto",
     "ParetoFront": "reachconf.conformance.pareto",
     "diagnose": "reachconf.diagnose.pipeline",
-    "DiagnoseOptions": "reachconf.diagnose.fit",
+    "DiagnoseOptions": "reachconf.diagnose.options",
     "GapReport": "reachconf.diagnose.report",
     "locate_gap": "reachconf.diagnose.locate",
     "identify": "reachconf.diagnose.identify",

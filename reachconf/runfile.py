@@ -37,7 +37,7 @@ from reachconf.checks import check_workers
 from reachconf.conformance.synthesis import SynthesisOptions
 from reachconf.conformance.trace import METHODS, TraceOptions
 from reachconf.diagnose.effects import EFFECTS
-from reachconf.diagnose.fit import DiagnoseOptions
+from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.errors import DataError, ReachconfError
 from reachconf.io.files import load_suite
 from reachconf.model.core import Model

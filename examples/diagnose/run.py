@@ -1,6 +1,12 @@
 """Gap diagnosis checked on data whose effect is withheld from the model.
 
     python examples/diagnose/run.py --out DIR [--repetitions 3] [--only yaw_offset ...] [--workers 2 | --scheduler ADDR]
+    python examples/diagnose/run.py --protocol --out DIR [--cache DIR] [--workers 2] [--stage all] [--test-seed 2]
+
+``--protocol`` runs the validation protocol of docs/diagnosis-validation.md
+(tuning and test suites made differently; thresholds chosen on the tuning
+suites; confusion tables, parameter errors and interval coverage on both):
+DIR/protocol.json and DIR/protocol.md.  Without it:
 
 For every entry of :data:`withheld.WITHHELD` (steering lag
 0.1 s, steering dead time 80 ms, acceleration scale 0.64 with offset 0.32 m/s²,
@@ -117,7 +123,17 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=None, help="local worker processes (one pool for the run)")
     ap.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://host:port instead of --workers")
     ap.add_argument("--reach", action="store_true", help="also the reachset-conformant W before/after (slower)")
+    ap.add_argument("--protocol", action="store_true", help="run the validation protocol (docs/diagnosis-validation.md)")
+    ap.add_argument("--cache", default=None, help="protocol: folder of the generated suites and results (OUT/cache)")
+    ap.add_argument("--stage", choices=("tuning", "test", "all"), default="all", help="protocol: which suites")
+    ap.add_argument("--test-seed", type=int, default=2, help="protocol: seed of the test set (another seed: another set)")
+    ap.add_argument("--generate-only", action="store_true", help="protocol: only generate the suites")
+    ap.add_argument("--redo", action="store_true", help="protocol: diagnose again even if a stored result matches")
     args = ap.parse_args(argv)
+    if args.protocol:
+        from protocol_run import run_protocol
+
+        return run_protocol(args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()

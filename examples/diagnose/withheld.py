@@ -25,7 +25,7 @@ from reachconf.datasets.vehicle_campaign import (
     reference_path,
     simulate_maneuver,
 )
-from reachconf.diagnose.fit import DiagnoseOptions
+from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.diagnose.identify import identify
 from reachconf.errors import OptionsError
 from reachconf.io import TestCase, TestSuite

@@ -213,8 +213,9 @@ def _delay(t, u, th):
 
 
 def _spread(x):
-    s = float(np.std(x))
-    return s if s > 0 else max(float(np.max(np.abs(x))), 1.0)
+    """Typical size of a signal: its root mean square (an offset may be as large as the signal's mean)."""
+    s = float(np.sqrt(np.mean(np.square(x))))
+    return s if s > 0 else 1.0
 
 
 def _stiffness_params(model):

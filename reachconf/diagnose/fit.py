@@ -14,90 +14,20 @@ hard bounds, so that they cannot soak up the effect.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from reachconf.checks import check_field_types
 from reachconf.diagnose.effects import effect_param_name
+from reachconf.diagnose.options import INTERVAL_METHODS, DiagnoseOptions
 from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.cases import TestCase, case_arrays
 from reachconf.model.outputs import evaluate_outputs, output_index_of_states, state_estimate, state_index_of_outputs
 from reachconf_kernels.integrate import rk4_windows
 
-__all__ = ["DiagnoseOptions", "noise_level", "PreparedCase", "prepare", "Candidate", "fit_candidate", "transformed_case"]
-
-
-@dataclass(frozen=True)
-class DiagnoseOptions:
-    """Options of :func:`reachconf.diagnose`.
-
-    Parameters
-    ----------
-    window : float, default 1.0
-        Length of the multi-step prediction windows (s).
-    stride : float, default 1.0
-        Time between window starts (s).
-    substeps : int, default 1
-        RK4 steps per sample interval in the predictions.
-    smooth : int, default 11
-        Savitzky–Golay window (samples, quadratic) of the window start states.
-    prior : float, default 0.1
-        Relative standard deviation of the prior on the base parameters.
-    param_bounds : float, default 0.5
-        Base parameters stay within ``nominal (1 +- param_bounds)``.
-    top : int, default 6
-        Number of candidates (best by held-out prediction) scored by the minimal box.
-    box_rate : float, default 20.0
-        Sample rate (Hz) the held-out cases are decimated to for the minimal-box scores.
-    box_segment : float, default 2.0
-        The held-out cases are cut into segments of this length (s) for the
-        minimal-box scores (the box is the hull of the segments' boxes).
-    min_shrink : float, default 1.0
-        Smallest volume shrink of the minimal box for naming an effect (1:
-        any shrink; the held-out prediction gain ``min_improvement`` decides).
-    min_improvement : float, default 0.3
-        ... and smallest relative reduction of the held-out prediction cost.
-    tie : float, default 0.1
-        Candidates whose held-out prediction cost is within this fraction of
-        the best are ranked by the shrink of the minimal box instead.
-    combine : bool, default True
-        Also try the best effect together with each runner-up (e.g. a scale and an offset).
-    tube_horizon : float, default 2.0
-        Horizon (s) of the before/after reach tubes of one held-out case (0: none).
-    """
-
-    window: float = 1.0
-    stride: float = 1.0
-    substeps: int = 1
-    smooth: int = 11
-    prior: float = 0.1
-    param_bounds: float = 0.5
-    top: int = 6
-    box_rate: float = 20.0
-    box_segment: float = 2.0
-    min_shrink: float = 1.0
-    min_improvement: float = 0.3
-    tie: float = 0.1
-    combine: bool = True
-    tube_horizon: float = 2.0
-
-    def __post_init__(self):
-        check_field_types(self)
-        for name in ("window", "stride", "prior", "param_bounds", "box_rate", "box_segment"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
-                raise OptionsError(f"DiagnoseOptions.{name} must be a positive number, got {v!r}")
-        for name in ("substeps", "smooth", "top"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, np.integer)) and v >= 1):
-                raise OptionsError(f"DiagnoseOptions.{name} must be a positive integer, got {v!r}")
-        if self.smooth < 3 or self.smooth % 2 == 0:
-            raise OptionsError(f"DiagnoseOptions.smooth must be an odd number >= 3, got {self.smooth}")
-        if not (isinstance(self.tie, (int, float)) and 0 <= self.tie < 1):
-            raise OptionsError(f"DiagnoseOptions.tie must be in [0, 1), got {self.tie!r}")
-        if not self.min_shrink >= 1.0 or not 0 <= self.min_improvement < 1:
-            raise OptionsError("DiagnoseOptions.min_shrink must be >= 1 and min_improvement in [0, 1)")
+__all__ = ["noise_level", "PreparedCase", "prepare", "Candidate", "FitResult",
+           "fit_candidate", "transformed_case", "transformed_signals", "window_residuals", "window_losses",
+           "window_counts", "prediction_cost"]
 
 
 def noise_level(Y: np.ndarray) -> np.ndarray:
@@ -107,6 +37,22 @@ def noise_level(Y: np.ndarray) -> np.ndarray:
     sigma = 1.4826 * mad / np.sqrt(20.0)
     floor = 1e-6 * np.maximum(np.ptp(Y, axis=0), 1e-12)
     return np.maximum(sigma, floor)
+
+
+def past_estimate(Y: np.ndarray, M: int) -> np.ndarray:
+    """Estimate of every sample from the ``M`` samples before it (quadratic least squares, extrapolated).
+
+    In closed loop the recorded commands react to the sensor noise; a window
+    started from a state smoothed over *later* samples would share that noise
+    with the commands and bias the fitted lags and delays.  Rows before ``M``
+    are left at 0.
+    """
+    j = np.arange(1, M + 1, dtype=float)
+    c = np.linalg.pinv(np.vander(-j, 3, increasing=True))[0]  # weights of y[k-1], ..., y[k-M]
+    out = np.zeros_like(Y, dtype=float)
+    for i, cj in enumerate(c):
+        out[M:] += cj * Y[M - 1 - i : Y.shape[0] - 1 - i]
+    return out
 
 
 @dataclass
@@ -122,6 +68,13 @@ class PreparedCase:
     starts: np.ndarray
     length: int
     case: object
+    offsets: np.ndarray | None = None  # compared steps within a window (1 ... length)
+    idx: np.ndarray | None = None  # sample index of every compared prediction, window after window
+
+    @property
+    def per_window(self) -> int:
+        """Compared predictions per window."""
+        return int(self.offsets.size)
 
 
 def prepare(model, case, options: DiagnoseOptions) -> PreparedCase:
@@ -136,11 +89,20 @@ def prepare(model, case, options: DiagnoseOptions) -> PreparedCase:
         raise ConformanceError(f"test case {case.name!r} is shorter than one prediction window ({options.window} s)")
     win = min(options.smooth, t.size - (1 - t.size % 2))
     Ys = savgol_filter(Y, win, 2, axis=0) if win >= 3 else Y.copy()
-    starts = np.arange(0, t.size - length - 1, stride, dtype=np.int64)
-    return PreparedCase(case.name, getattr(case, "group", "default"), t, U, Y, Ys, starts, length, case)
+    first = 0
+    if options.start_state == "past":
+        M = 2 * options.smooth - 1
+        if t.size > M + length + 2:
+            Ys[M:] = past_estimate(Y, M)[M:]
+            first = M
+    starts = np.arange(first, t.size - length - 1, stride, dtype=np.int64)
+    every = max(int(round(options.compare_step / dt)), 1)
+    offsets = np.arange(length, 0, -every, dtype=np.int64)[::-1]  # always includes the window's last step
+    idx = (starts[:, None] + offsets[None, :]).reshape(-1)
+    return PreparedCase(case.name, getattr(case, "group", "default"), t, U, Y, Ys, starts, length, case, offsets, idx)
 
 
-@dataclass
+@dataclass(frozen=True)
 class Candidate:
     """One or more (effect, target) pairs fitted jointly with the base parameters."""
 
@@ -150,6 +112,11 @@ class Candidate:
     def label(self) -> str:
         """``effect(target) + ...``, or ``base`` for no effect."""
         return " + ".join(f"{e.name}({t})" for e, t in self.parts) if self.parts else "base"
+
+    @property
+    def keys(self) -> frozenset:
+        """The (effect name, target) pairs: candidates are nested when one's keys contain the other's."""
+        return frozenset((e.name, t) for e, t in self.parts)
 
 
 def _model_for(base, cand: Candidate, cache: dict):
@@ -164,8 +131,11 @@ def _model_for(base, cand: Candidate, cache: dict):
             if e.kind in ("param", "state"):
                 model = e.apply_model(model, t)
                 names += [n for n in model.param_names if n not in base.param_names and n not in names]
+        model.compiled()
         cache[key] = (model, tuple(names))
-    return cache[key]
+    model, names = cache[key]
+    # the cached model may have been built from a base with other parameter values
+    return model.with_params(**{n: base.params[n] for n in base.param_names}), names
 
 
 def transformed_signals(model, cand: Candidate, theta_eff: dict, t, U, Y):
@@ -198,29 +168,50 @@ def _states(model, Ys, U, direct):
 
 
 def window_residuals(model, cand: Candidate, theta_eff: dict, data, sigma, substeps):
-    """Normalised multi-step prediction residuals of all windows of all cases (one flat array)."""
+    """Normalised multi-step prediction residuals of all windows of all cases (one flat array).
+
+    Window after window (each ``length x p`` values), case after case.
+    """
     comp = model.compiled()
     pv = model.param_vector
     direct = output_index_of_states(model)
     plain = state_index_of_outputs(model)
+    inputs = [(e, tgt) for e, tgt in sorted(cand.parts, key=lambda p: p[0].order) if e.kind == "input"]
+    outputs = [(e, tgt) for e, tgt in cand.parts if e.kind == "output"]
     out = []
     for d in data:
-        U, Ym = transformed_signals(model, cand, theta_eff, d.t, d.U, d.Y)
-        _, Ysm = transformed_signals(model, cand, theta_eff, d.t, d.U, d.Ys)
-        X0 = _states(model, Ysm[d.starts], U[d.starts], direct)
+        U = d.U
+        if inputs:
+            U = U.copy()
+            for e, tgt in inputs:
+                j = model.input_names.index(tgt)
+                U[:, j] = e.apply_signal(d.t, U[:, j], theta_eff[(e.name, tgt)])
+        Ym, Y0 = d.Y[d.idx], d.Ys[d.starts]
+        if outputs:
+            Ym, Y0 = Ym.copy(), Y0.copy()
+            for e, tgt in outputs:
+                i = model.output_names.index(tgt)
+                th = theta_eff[(e.name, tgt)]
+                Ym[:, i] = e.inverse(Ym[:, i], th)
+                Y0[:, i] = e.inverse(Y0[:, i], th)
+        X0 = _states(model, Y0, U[d.starts], direct)
         P = rk4_windows(comp.f, np.ascontiguousarray(X0), d.starts, U, d.t, pv, model.q, d.length, int(substeps))
-        idx = (d.starts[:, None] + 1 + np.arange(d.length)[None, :]).reshape(-1)
-        Xp = P.reshape(-1, model.n)
-        Yp = Xp[:, plain] if plain is not None else evaluate_outputs(model, Xp, U[idx])
+        Xp = P[:, d.offsets - 1, :].reshape(-1, model.n)
+        Yp = Xp[:, plain] if plain is not None else evaluate_outputs(model, Xp, U[d.idx])
         if not np.all(np.isfinite(Yp)):
             Yp = np.where(np.isfinite(Yp), Yp, 1e6)
-        out.append(((Yp - Ym[idx]) / sigma).reshape(-1))
+        out.append(((Yp - Ym) / sigma).reshape(-1))
     return np.concatenate(out)
+
+
+def window_counts(data) -> np.ndarray:
+    """Number of prediction windows of each prepared case."""
+    return np.array([d.starts.size for d in data], dtype=np.int64)
 
 
 @dataclass
 class FitResult:
-    """A fitted candidate: the model with its parameters, the effect's parameters and their spread.
+    """A fitted candidate: the model with its parameters, the effect parameters and their uncertainty.
 
     Attributes
     ----------
@@ -230,41 +221,120 @@ class FitResult:
     base_params : dict
     effect_params : dict (effect, target) -> tuple
     effect_std : dict (effect, target) -> tuple
+        Cluster-robust (sandwich) standard deviations, cases as clusters.
     train_cost : float
     success : bool
     message : str
+    x : ndarray
+        All fitted parameters; ``labels`` names them.
+    cov : dict
+        ``"case"``/``"group"`` -> (sandwich covariance of ``x``, number of clusters).
+    at_bound : tuple
+        Labels of the parameters that ended at a bound.
+    spread : dict
+        (effect, target) -> the estimates fitted on each group of cases alone.
     """
 
     candidate: Candidate
     model: object  # base (or transformed) model with the fitted parameters
     base_params: dict
     effect_params: dict  # (effect, target) -> tuple
-    effect_std: dict
+    effect_std: dict  # (effect, target) -> tuple: robust std, case clusters (group clusters if so chosen)
     train_cost: float
     success: bool
     message: str = ""
+    x: np.ndarray | None = None
+    labels: tuple = ()  # parameter labels of x: base names, then "effect.param(target)"
+    cov: dict = field(default_factory=dict)  # clustering -> (covariance of x, number of clusters)
+    at_bound: tuple = ()  # labels of parameters ending at a bound
+    spread: dict = field(default_factory=dict)  # (effect, target) -> per-group estimates (list of tuples)
+
+    def std(self, key, method: str = "case") -> tuple:
+        """Standard deviations of the effect parameters of ``key``: robust (``"case"``, ``"group"``) or of the
+        per-group estimates (``"spread"``, times ``sqrt(1 + 1/G)``: the spread of a new maneuver's estimate)."""
+        th = self.effect_params[key]
+        if method == "spread":
+            est = np.asarray(self.spread.get(key, []), dtype=float)
+            if est.ndim != 2 or est.shape[0] < 2:
+                return tuple(float("nan") for _ in th)
+            G = est.shape[0]
+            return tuple(float(v) for v in np.std(est, axis=0, ddof=1) * np.sqrt(1 + 1 / G))
+        cov, _ = self.cov.get(method, (None, 0))
+        if cov is None:
+            return tuple(float("nan") for _ in th)
+        e_name, tgt = key
+        return tuple(float(np.sqrt(max(cov[i, i], 0.0))) for i, lab in enumerate(self.labels)
+                     if lab.startswith(f"{e_name}.") and lab.endswith(f"({tgt})"))  # fmt: skip
+
+    def interval(self, key, level: float = 0.95, method: str = "spread") -> list:
+        """``[(lo, hi), ...]`` intervals of the effect parameters of ``key = (effect, target)``.
+
+        Estimate +- Student t quantile (number of clusters or groups - 1 degrees of freedom) x :meth:`std`.
+        """
+        from scipy.stats import t as student_t
+
+        th = self.effect_params[key]
+        n = len(self.spread.get(key, [])) if method == "spread" else self.cov.get(method, (None, 0))[1]
+        if n < 2:
+            return [(float("nan"), float("nan")) for _ in th]
+        q = float(student_t.ppf(0.5 + level / 2, n - 1))
+        return [(float(v - q * sd), float(v + q * sd)) for v, sd in zip(th, self.std(key, method))]
 
 
-def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: DiagnoseOptions, cache: dict) -> FitResult:
-    """Least-squares fit of the candidate's parameters jointly with the base parameters ``fit_names``."""
+def _robust_cov(J, r, n_data, blocks_by):
+    """Sandwich covariances ``B^-1 M B^-1`` (``B = J^T J`` incl. prior rows, ``M`` from cluster scores).
+
+    ``blocks_by``: clustering name -> array of cluster ids per data residual (contiguous clusters).
+    """
+    B = J.T @ J
+    Binv = np.linalg.pinv(B)
+    Jd = J[:n_data] * r[:n_data, None]
+    out = {}
+    for name, ids in blocks_by.items():
+        _, first = np.unique(ids, return_index=True)
+        first = np.sort(first)
+        C = first.size
+        if C < 2:
+            continue
+        S = np.add.reduceat(Jd, first, axis=0)  # scores per cluster
+        M = S.T @ S * C / (C - 1)
+        out[name] = (Binv @ M @ Binv, int(C))
+    return out
+
+
+def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: DiagnoseOptions, cache: dict,
+                  start: dict | None = None, max_nfev: int = 60) -> FitResult:  # fmt: skip
+    """Least-squares fit of the candidate's parameters jointly with the base parameters ``fit_names``.
+
+    ``start`` (optional) holds starting values: base parameter names and
+    ``(effect, target)`` keys.  The prior keeps the base parameters near the
+    values of ``base``.  The covariance of the result is the cluster-robust
+    sandwich (clusters: cases and groups of ``train``), which holds also when
+    the windows' errors are correlated and the model is misspecified.
+    """
     from scipy.optimize import least_squares
 
+    start = start or {}
     model, new_names = _model_for(base, cand, cache)
+    model.compiled()  # compile (or load) once: the with_params copies below share it instead of re-hashing sympy
     nominal = np.array([base.params[n] for n in fit_names], dtype=float)
     scale = np.where(nominal != 0, np.abs(nominal), 1.0)
     lo_b = nominal - options.param_bounds * scale
     hi_b = nominal + options.param_bounds * scale
     # effect parameters: signal effects in order of parts, then model-effect parameters
-    slots, x0, lo, hi = [], list(nominal), list(lo_b), list(hi_b)
+    slots, x0, lo, hi = [], [start.get(n, v) for n, v in zip(fit_names, nominal)], list(lo_b), list(hi_b)
+    labels = list(fit_names)
     for e, tgt in cand.parts:
         sig = _target_signal(base, e, tgt, train)
-        g = e.guess(sig)
+        g = start.get((e.name, tgt), e.guess(sig))
         blo, bhi = e.bounds(sig)
         slots.append((e, tgt, len(x0), len(e.params)))
         x0 += list(g)
         lo += list(blo)
         hi += list(bhi)
-    x0 = np.clip(np.array(x0, float), np.array(lo) + 1e-12, np.array(hi) - 1e-12)
+        labels += [f"{e.name}.{p}({tgt})" for p in e.params]
+    lo, hi = np.array(lo, float), np.array(hi, float)
+    x0 = np.clip(np.array(x0, float), lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
     nb = len(fit_names)
 
     def unpack(x):
@@ -286,29 +356,43 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
         prior = (x[:nb] - nominal) / (options.prior * scale) * np.sqrt(r.size)
         return np.concatenate([r, prior])
 
-    span = np.array(hi) - np.array(lo)
+    span = hi - lo
     try:
         sol = least_squares(fun, x0, bounds=(lo, hi), x_scale=np.where(np.isfinite(span), span / 10, 1.0),
-                            xtol=1e-6, ftol=1e-6, max_nfev=60)  # fmt: skip
+                            xtol=1e-5, ftol=1e-6, max_nfev=max_nfev)  # fmt: skip
     except (ValueError, FloatingPointError, ZeroDivisionError) as exc:  # pragma: no cover - numerical failure
         m, eff = unpack(x0)
-        return FitResult(cand, m, dict(zip(fit_names, x0[:nb])), eff, {}, np.inf, False, str(exc))
+        return FitResult(cand, m, dict(zip(fit_names, x0[:nb])), eff, {}, np.inf, False, str(exc), x0, tuple(labels))
     m, eff = unpack(sol.x)
     N = n_data[0]
     r = sol.fun[:N]
-    # parameter uncertainty from the curvature; the residuals of one window are strongly correlated
-    # (about one independent error per window), so the variance is inflated by the window length
-    std = {}
+    # clusters of the residuals: cases and groups (the windows of a case share its maneuver's misfit)
+    per_case = np.array([d.starts.size * d.per_window * len(sigma) for d in train])
+    case_ids = np.repeat(np.arange(len(train)), per_case)
+    group_index = {g: i for i, g in enumerate(dict.fromkeys(d.group for d in train))}
+    order = np.argsort([group_index[d.group] for d in train], kind="stable")
+    cov = {}
     try:
-        J = sol.jac
-        cov = np.linalg.pinv(J.T @ J) * float(np.mean(r**2)) * max(d.length for d in train)
-        sd = np.sqrt(np.clip(np.diag(cov), 0, None))
-        for e, tgt, i, k in slots:
-            std[(e.name, tgt)] = tuple(sd[i : i + k])
+        cov = _robust_cov(sol.jac, sol.fun, N, {"case": case_ids})
+        if len(group_index) >= 2:
+            # groups must be contiguous for the cluster sums: permute the residual rows case-wise
+            rows = np.concatenate([np.arange(per_case[:i].sum(), per_case[: i + 1].sum()) for i in order])
+            gids = np.repeat([group_index[train[i].group] for i in order], per_case[order])
+            Jp = np.vstack([sol.jac[rows], sol.jac[N:]])
+            fp = np.concatenate([sol.fun[rows], sol.fun[N:]])
+            cov.update(_robust_cov(Jp, fp, N, {"group": gids}))
     except np.linalg.LinAlgError:  # pragma: no cover
         pass
+    std = {}
+    chosen = cov.get(options.interval_method, cov.get("case"))
+    if chosen is not None:
+        sd = np.sqrt(np.clip(np.diag(chosen[0]), 0, None))
+        for e, tgt, i, k in slots:
+            std[(e.name, tgt)] = tuple(float(v) for v in sd[i : i + k])
+    tol = 1e-6 * np.where(np.isfinite(span), span, 1.0)
+    at_bound = tuple(lab for lab, v, a, b, eps in zip(labels, sol.x, lo, hi, tol) if v - a <= eps or b - v <= eps)
     return FitResult(cand, m, dict(zip(fit_names, sol.x[:nb])), eff, std, float(np.mean(r**2)), bool(sol.success),
-                     sol.message)  # fmt: skip
+                     sol.message, np.array(sol.x), tuple(labels), cov, at_bound)  # fmt: skip
 
 
 def _target_signal(model, e, tgt, data):
@@ -319,6 +403,15 @@ def _target_signal(model, e, tgt, data):
         i = model.output_names.index(tgt)
         return np.concatenate([d.Y[:, i] for d in data])
     return None
+
+
+def window_losses(fit: FitResult, data, sigma, options: DiagnoseOptions) -> np.ndarray:
+    """Sum of squared normalised residuals of every prediction window of ``data`` (cases in order)."""
+    r = window_residuals(fit.model, fit.candidate, fit.effect_params, data, sigma, options.substeps)
+    sizes = np.concatenate([np.full(d.starts.size, d.per_window * len(sigma)) for d in data])
+    if sizes.size and np.all(sizes == sizes[0]):
+        return np.sum(r.reshape(-1, int(sizes[0])) ** 2, axis=1)
+    return np.add.reduceat(r**2, np.concatenate([[0], np.cumsum(sizes)[:-1]]))
 
 
 def prediction_cost(fit: FitResult, data, sigma, options: DiagnoseOptions) -> float:

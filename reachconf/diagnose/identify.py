@@ -21,7 +21,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
-from reachconf.diagnose.fit import Candidate, DiagnoseOptions, fit_candidate, noise_level, prepare
+from reachconf.diagnose.fit import Candidate, fit_candidate, noise_level, prepare
+from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.results import JsonResult
 from reachconf.model.outputs import output_index_of_states

@@ -42,21 +42,33 @@ class GapReport(JsonResult):
         conditions) and, if the suite has requested and measured actuator
         signals, ``actuator_vs_process``.
     ranked_effects : list of dict
-        Best first: ``effect``, ``target``, ``params`` (name -> value),
-        ``params_std``, ``shrink_volume``, ``shrink_per_channel`` (channel ->
-        factor), ``prediction_cost`` (held-out), ``prediction_gain``,
-        ``box`` (channel -> [lo, hi]) when box-scored.
+        Every scored model (one or two effects), lowest held-out prediction
+        loss first: ``label``, ``parts`` ([[effect, target], ...]),
+        ``held_out_loss``, ``prediction_gain`` (share of the base model's
+        held-out loss removed), ``z_vs_base``, ``admissible``, ``tests``,
+        ``params_by_effect`` (mean over the folds); single effects also
+        ``effect``, ``target``, ``params``.  Then the effects left out by the
+        screening (``screen_cost``, no held-out scores).
     verdict : str
     base : dict
         The refitted base model: ``params``, ``prediction_cost``, ``box``, ``V_box``.
     combination : dict or None
-        The best effect together with a second one, if that shrinks the box further.
+        Unused since the decision scores pairs of effects itself (kept for old JSON readers; always None).
     features : list of dict
         Model-free check: dictionary features that explain the disturbance traces.
     before_after : dict
         Minimal trace-conformant W (and V) of the base and the best model, per channel, with shrink factors.
     split : dict
-        Training and held-out case names (disjoint).
+        Training and held-out case names of the first fold (disjoint) and every case's fold.
+    decision : dict
+        Machine-readable verdict: ``status`` ("named", "indistinguishable" or
+        "none"), ``model`` (label of the chosen model), ``named`` (per effect:
+        ``effect``, ``target``, ``params``, ``params_std`` and ``interval``
+        from the all-cases fit with the cluster-robust covariance),
+        ``alternatives`` (explanations the data cannot separate from the
+        chosen one: ``label``, ``parts``, ``z``, ``differs``, ``effects``,
+        ``separating`` — the probe maneuver that would separate them — and
+        ``data_band_shares``), ``admissible``, ``tests``, ``thresholds``.
     """
 
     where: dict
@@ -68,36 +80,60 @@ class GapReport(JsonResult):
     before_after: dict = field(default_factory=dict)
     split: dict = field(default_factory=dict)
     seconds: float = 0.0
+    decision: dict = field(default_factory=dict)
+    cpu_seconds: float = 0.0
     tubes: list = field(default_factory=list, repr=False)  # before/after reach tubes (not serialised)
+    scores: dict = field(default_factory=dict, repr=False)  # held-out losses per window and model (not serialised)
 
     @property
     def best(self) -> dict | None:
-        """The best-ranked effect (``ranked_effects[0]``), or None."""
+        """The model with the lowest held-out loss, named or not (``ranked_effects[0]``), or None."""
         return self.ranked_effects[0] if self.ranked_effects else None
+
+    @property
+    def status(self) -> str:
+        """"named", "indistinguishable" or "none"."""
+        return self.decision.get("status", "none")
+
+    @property
+    def named(self) -> list:
+        """The named effects (``effect``, ``target``, ``params``, ``params_std``, ``interval``)."""
+        return list(self.decision.get("named", []))
 
     def to_dict(self) -> dict:
         """The report as plain JSON values (NaN and inf as None); the reach tubes are left out."""
         return _plain({"where": self.where, "ranked_effects": self.ranked_effects, "verdict": self.verdict,
                        "base": self.base, "combination": self.combination, "features": self.features,
-                       "before_after": self.before_after, "split": self.split, "seconds": self.seconds})  # fmt: skip
+                       "before_after": self.before_after, "split": self.split, "seconds": self.seconds,
+                       "cpu_seconds": self.cpu_seconds, "decision": self.decision})  # fmt: skip
 
     def summary(self, top: int = 5) -> str:
         """Markdown summary."""
         lines = ["# Sim-to-real gap diagnosis", "", f"**Verdict:** {self.verdict}", ""]
-        lines += ["## Which effect", "", "| rank | effect | target | parameters (± std) | W volume shrink | "
-                  "per channel | held-out prediction cost |", "|---|---|---|---|---|---|---|"]  # fmt: skip
-        for i, e in enumerate(self.ranked_effects[:top]):
-            ps = ", ".join(f"{k} = {v:.4g} ± {e.get('params_std', {}).get(k, float('nan')):.2g}"
-                           for k, v in e["params"].items())  # fmt: skip
-            sv = e.get("shrink_volume")
-            pc = ", ".join(f"{k} {v:.2f}" for k, v in (e.get("shrink_per_channel") or {}).items())
-            lines.append(f"| {i + 1} | {e['effect']} | {e['target']} | {ps} | "
-                         f"{'' if sv is None else f'{sv:.2f}'} | {pc} | {e['prediction_cost']:.3g} |")  # fmt: skip
-        lines.append(f"| - | base (refitted) | | | 1 | | {self.base.get('prediction_cost', float('nan')):.3g} |")
-        if self.combination:
-            c = self.combination
-            lines += ["", f"Combined: {c['label']}, W volume shrink {c['shrink_volume']:.2f}, parameters "
-                      + ", ".join(f"{k} = {v:.4g}" for k, v in c["params"].items())]  # fmt: skip
+        dec = self.decision
+        if dec.get("named"):
+            lines += ["## Named", "", "| effect | target | parameter | estimate | robust std | "
+                      f"{100 * dec['thresholds']['interval']:.0f} % interval |", "|---|---|---|---|---|---|"]  # fmt: skip
+            for e in dec["named"]:
+                for p, v in e["params"].items():
+                    lo, hi = e["interval"][p]
+                    lines.append(f"| {e['effect']} | {e['target']} | {p} | {v:.4g} | {e['params_std'][p]:.2g} | "
+                                 f"[{lo:.4g}, {hi:.4g}] |")  # fmt: skip
+            lines.append("")
+        for a in dec.get("alternatives", []):
+            lines.append(f"- Indistinguishable from **{a['label']}** (held-out z = {a['z']:.1f})"
+                         + (f"; separating maneuver: {a['separating']['probe']['text']} "
+                            f"({a['separating']['separation']:.1f} noise std)" if a.get("separating") else ""))  # fmt: skip
+        lines += ["", "## Which effect (held-out prediction, cross-fitted)", "",
+                  "| rank | model | parameters (mean over folds) | held-out loss | gain vs base | z vs base | "
+                  "admissible |", "|---|---|---|---|---|---|---|"]  # fmt: skip
+        for i, e in enumerate([e for e in self.ranked_effects if e.get("held_out_loss") is not None][:top]):
+            ps = "; ".join(f"{lab}: " + ", ".join(f"{k} = {v:.4g}" for k, v in pv.items())
+                           for lab, pv in e["params_by_effect"].items())  # fmt: skip
+            lines.append(f"| {i + 1} | {e['label']} | {ps} | {e['held_out_loss']:.4g} | "
+                         f"{100 * e['prediction_gain']:.0f} % | {e['z_vs_base']:.1f} | "
+                         f"{'yes' if e['admissible'] else 'no'} |")  # fmt: skip
+        lines.append(f"| - | base (refitted) | | {self.base.get('held_out_loss', float('nan')):.4g} | | | |")
         if self.before_after:
             lines += ["", "## How far it shrinks (minimal trace-conformant boxes, held-out cases)", "",
                       "| set | channel | base | with effect | shrink |", "|---|---|---|---|---|"]  # fmt: skip
@@ -127,8 +163,9 @@ class GapReport(JsonResult):
             lines += ["", "## Model-free check (sparse regression of the disturbance traces)", ""]
             for f in self.features[:top]:
                 lines.append(f"- {f['channel']}: {f['feature']} explains {100 * f['share']:.0f} % of the variance")
-        lines += ["", f"Training cases: {len(self.split.get('train', []))}, held-out: "
-                  f"{len(self.split.get('test', []))}; {self.seconds:.1f} s."]  # fmt: skip
+        lines += ["", f"{self.base.get('folds', '?')} folds; first fold: {len(self.split.get('train', []))} "
+                  f"training, {len(self.split.get('test', []))} held-out cases; {self.seconds:.1f} s "
+                  f"({self.cpu_seconds:.1f} s CPU)."]  # fmt: skip
         return "\n".join(lines) + "\n"
 
     @classmethod
@@ -136,7 +173,7 @@ class GapReport(JsonResult):
         """The report from :meth:`to_dict` (without the reach tubes, which are not saved)."""
         return cls(d["where"], list(d["ranked_effects"]), d["verdict"], dict(d.get("base", {})), d.get("combination"),
                    list(d.get("features", [])), dict(d.get("before_after", {})), dict(d.get("split", {})),
-                   float(d.get("seconds", 0.0)))  # fmt: skip
+                   float(d.get("seconds", 0.0)), dict(d.get("decision", {})), float(d.get("cpu_seconds", 0.0)))  # fmt: skip
 
     def plot(self, ax=None, kind: str = "effects"):
         """One picture of the report; returns its axes (``None`` when the report has no data for it).
@@ -147,7 +184,8 @@ class GapReport(JsonResult):
             For ``kind="boxes"`` one per disturbance channel.  (A folder
             instead writes every picture, as :meth:`save_plots`.)
         kind : {"effects", "boxes", "tubes"}
-            Effect ranking by the shrink of the minimal W volume; the
+            The scored models by their held-out prediction gain (admissible
+            ones in green); the
             per-channel minimal W before/after; the reach tubes of a held-out
             case before/after with its measurements.
         """
@@ -156,16 +194,17 @@ class GapReport(JsonResult):
         if isinstance(ax, (str, Path)):  # the old plot(out): write the PNGs
             return self.save_plots(ax)
         if kind == "effects":
-            scored = [e for e in self.ranked_effects if e.get("shrink_volume") is not None]
+            scored = [e for e in self.ranked_effects if e.get("held_out_loss") is not None]
             if not scored:
                 return None
             if ax is None:
                 _, ax = plt.subplots(figsize=(7, 0.4 * len(scored) + 1.5))
-            labels = [f"{e['effect']}({e['target']})" for e in scored][::-1]
-            ax.barh(labels, [e["shrink_volume"] for e in scored][::-1], color="tab:blue")
-            ax.axvline(1.0, color="k", lw=0.8)
-            ax.set_xscale("log")
-            ax.set_xlabel("shrink of the minimal trace-conformant W volume (held-out cases)")
+            labels = [e["label"] for e in scored][::-1]
+            colors = ["tab:green" if e["admissible"] else "tab:gray" for e in scored][::-1]
+            ax.barh(labels, [100 * e["prediction_gain"] for e in scored][::-1], color=colors)
+            ax.axvline(0.0, color="k", lw=0.8)
+            ax.set_xlabel("held-out prediction loss removed vs the base model [%] (green: admissible)")
+            ax.tick_params(axis="y", labelsize=7)
             ax.set_title(self.verdict[:90], fontsize=8)
         elif kind == "boxes":
             ba = self.before_after.get("W")

@@ -91,27 +91,34 @@ def test_diagnose_names_a_withheld_input_lag_and_its_time_constant():
     m, suite = _oscillator_suite(lag=0.2)
     rep = rc.diagnose(m, suite, effects=["actuator_lag", "dead_time", "input_offset", "input_scale", "output_offset"],
                       progress=False)  # fmt: skip
-    best = rep.ranked_effects[0]
-    assert (best["effect"], best["target"]) == ("actuator_lag", "u")
-    assert abs(best["params"]["tau"] - 0.2) < 0.25 * 0.2
-    assert best["prediction_gain"] > 0.5 and best["shrink_volume"] > 1.0
-    assert "actuator_lag on u" in rep.verdict
+    assert rep.status == "named"
+    (named,) = rep.named
+    assert (named["effect"], named["target"]) == ("actuator_lag", "u")
+    assert abs(named["params"]["tau"] - 0.2) < 0.1 * 0.2
+    lo, hi = named["interval"]["tau"]
+    assert lo < named["params"]["tau"] < hi and hi - lo < 0.2  # an interval, and not a uselessly wide one
+    best = next(e for e in rep.ranked_effects if e["label"] == "actuator_lag(u)")
+    assert best["prediction_gain"] > 0.5 and best["admissible"] and best["z_vs_base"] > 3
+    assert "actuator_lag on u" in rep.verdict and "explains the gap" in rep.verdict
     assert set(rep.split["train"]).isdisjoint(rep.split["test"])
     d = json.loads(rep.to_json())
-    assert {"where", "ranked_effects", "verdict"} <= set(d)
-    assert {"effect", "target", "params", "shrink_volume", "shrink_per_channel"} <= set(d["ranked_effects"][0])
+    assert {"where", "ranked_effects", "verdict", "decision"} <= set(d)
+    assert d["decision"]["status"] == "named" and d["decision"]["named"][0]["effect"] == "actuator_lag"
+    assert {"label", "parts", "held_out_loss", "prediction_gain", "z_vs_base"} <= set(d["ranked_effects"][0])
     assert d["before_after"]["W"]["w"]["shrink"] > 1.0
-    assert "| 1 | actuator_lag | u |" in rep.summary()
+    assert "| actuator_lag | u | tau |" in rep.summary()
 
 
 def test_diagnose_finds_an_offset_and_says_so_when_nothing_explains_the_gap():
     # without a spring (k = 0) an input offset is not an output offset in disguise (with k > 0 it is: c / k on p)
     m, suite = _oscillator_suite(offset=0.4, seed=10, k=0.0)
     rep = rc.diagnose(m, suite, effects=["actuator_lag", "input_offset", "output_offset"], progress=False)
-    assert (rep.best["effect"], rep.best["target"]) == ("input_offset", "u")
-    assert abs(rep.best["params"]["c"] - 0.4) < 0.1
+    assert rep.status == "named"
+    assert [(e["effect"], e["target"]) for e in rep.named] == [("input_offset", "u")]
+    assert abs(rep.named[0]["params"]["c"] - 0.4) < 0.1
     m, suite = _oscillator_suite(seed=20)
     rep = rc.diagnose(m, suite, effects=["actuator_lag", "input_offset", "output_offset"], progress=False)
+    assert rep.status == "none" and rep.named == []
     assert rep.verdict.startswith("no effect in the library explains the gap")
 
 
@@ -131,6 +138,10 @@ def test_diagnose_bad_input():
         DiagnoseOptions(window=0)
     with pytest.raises(OptionsError):
         DiagnoseOptions(smooth=4)
+    for bad in ({"z_name": -1.0}, {"min_improvement": 1.0}, {"interval": 1.5}, {"interval_method": "bootstrap"},
+                {"start_state": "future"}, {"pair_top": -1}, {"screen": 0}, {"compare_step": 0.0}):  # fmt: skip
+        with pytest.raises(OptionsError):
+            DiagnoseOptions(**bad)
     no_w = rc.Model(name="no_w", states=("p", "v"), inputs=("u",), dynamics=lambda s: [s.v, -s.p + s.u])
     with pytest.raises(ConformanceError):
         rc.diagnose(no_w, suite, progress=False)
@@ -159,7 +170,7 @@ def test_cli_diagnose(tmp_path):
         rc_code = main(["diagnose", str(run), "--json", str(tmp_path / "r.json"), "--out", str(tmp_path / "out")])
         assert rc_code == 0
         d = json.loads((tmp_path / "r.json").read_text())
-        assert d["ranked_effects"][0]["effect"] == "actuator_lag"
+        assert d["decision"]["named"][0]["effect"] == "actuator_lag"
         assert (tmp_path / "out" / "report.md").exists() and (tmp_path / "out" / "effects.png").exists()
         run.write_text('model = "osc:model"\nsuite = "suite"\n[diagnose]\neffects = ["warp"]\n')
         assert main(["diagnose", str(run)]) == 2
@@ -189,8 +200,8 @@ def test_diagnose_with_defaults_alone():
     """The whole library on every target, all parameters refitted, V estimated from the data."""
     m, suite = _oscillator_suite(lag=0.2, n=4, seed=7)
     rep = rc.diagnose(m, suite, progress=False)
-    assert (rep.best["effect"], rep.best["target"]) == ("actuator_lag", "u")
-    targets = {(e["effect"], e["target"]) for e in rep.ranked_effects}
+    assert rep.status == "named" and (rep.named[0]["effect"], rep.named[0]["target"]) == ("actuator_lag", "u")
+    targets = {(e["effect"], e["target"]) for e in rep.ranked_effects if "effect" in e}
     assert ("drag", "v") in targets and ("output_offset", "p") in targets and ("dead_time", "u") in targets
     assert len(rep.base["V"]) == 2 and all(lo < 0 < hi for lo, hi in rep.base["V"])
 

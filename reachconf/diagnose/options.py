@@ -1,0 +1,140 @@
+"""Options of the gap diagnosis (:func:`reachconf.diagnose`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from reachconf.checks import check_field_types
+from reachconf.errors import OptionsError
+
+__all__ = ["DiagnoseOptions", "INTERVAL_METHODS"]
+
+
+@dataclass(frozen=True)
+class DiagnoseOptions:
+    """Options of :func:`reachconf.diagnose`.
+
+    The decision thresholds (``z_name``, ``min_improvement``, ``z_separate``)
+    and the interval method were chosen on the tuning suites of the
+    validation protocol only (``docs/diagnosis-validation.md``) and checked
+    on test suites made differently.
+
+    Parameters
+    ----------
+    window : float, default 1.0
+        Length of the multi-step prediction windows (s).
+    stride : float, default 1.0
+        Time between window starts (s).
+    compare_step : float, default 0.05
+        Predictions are compared with the measurements every ``compare_step``
+        seconds of a window (at least every sample; the integration runs on
+        every sample): neighbouring errors of a prediction are nearly equal.
+    substeps : int, default 1
+        RK4 steps per sample interval in the predictions.
+    smooth : int, default 11
+        Savitzky–Golay window (samples, quadratic) of smoothed states.
+    start_state : {"past", "centered"}, default "past"
+        The prediction windows start from a state estimated from the
+        ``2 smooth - 1`` samples before the start ("past": independent of the
+        sensor noise that the recorded commands react to in closed loop) or
+        from the Savitzky–Golay smoothed measurement ("centered").
+    prior : float, default 0.1
+        Relative standard deviation of the prior on the base parameters.
+    param_bounds : float, default 0.5
+        Base parameters stay within ``nominal (1 +- param_bounds)``.
+    screen : int, default 6
+        Single effects (best by an in-sample fit with the base parameters
+        frozen) that are fitted jointly with the base parameters and scored on
+        held-out cases.
+    pair_top : int, default 4
+        The best ``pair_top`` single effects (held-out) are also scored in pairs.
+    z_name : float, default 3.0
+        An effect (or a second effect) is added only if its held-out gain is
+        significant: paired z statistic of the held-out losses over clusters
+        (cases) at least ``z_name``.
+    min_improvement : float, default 0.3
+        ... and relevant: it lowers the held-out prediction loss of the model
+        it is added to by at least this share.
+    z_separate : float, default 2.0
+        An alternative explanation is ruled out when the chosen one predicts the
+        held-out cases better with a paired z of at least ``z_separate``;
+        otherwise both are reported as indistinguishable.
+    interval : float, default 0.95
+        Nominal coverage of the parameter intervals.
+    interval_method : {"spread", "case", "group"}, default "spread"
+        Parameter intervals: "case" and "group" — the cluster-robust
+        (sandwich) covariance with test cases or groups (maneuvers) as
+        clusters; "spread" — the spread of the estimates fitted on each group
+        alone (a prediction interval for the estimate another maneuver would
+        give: it holds the model misfit that makes different maneuvers give
+        different values).
+    min_clusters : int, default 8
+        With fewer cases than this, cases are cut into blocks of windows so
+        that the paired tests have at least this many clusters.
+    box_rate : float, default 20.0
+        Sample rate (Hz) the held-out cases are decimated to for the minimal-box scores.
+    box_segment : float, default 2.0
+        The held-out cases are cut into segments of this length (s) for the
+        minimal-box scores (the box is the hull of the segments' boxes).
+    box_cases : int, default 4
+        Number of held-out cases whose minimal boxes are computed before/after.
+    tube_horizon : float, default 2.0
+        Horizon (s) of the before/after reach tubes of one held-out case (0: none).
+    """
+
+    window: float = 1.0
+    stride: float = 1.0
+    compare_step: float = 0.05
+    substeps: int = 1
+    smooth: int = 11
+    start_state: str = "past"
+    prior: float = 0.1
+    param_bounds: float = 0.5
+    screen: int = 6
+    pair_top: int = 4
+    z_name: float = 3.0
+    min_improvement: float = 0.3
+    z_separate: float = 2.0
+    interval: float = 0.95
+    interval_method: str = "spread"
+    min_clusters: int = 8
+    box_rate: float = 20.0
+    box_segment: float = 2.0
+    box_cases: int = 4
+    tube_horizon: float = 2.0
+
+    def __post_init__(self):
+        check_field_types(self)
+        for name in ("window", "stride", "compare_step", "prior", "param_bounds", "box_rate", "box_segment"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+                raise OptionsError(f"DiagnoseOptions.{name} must be a positive number, got {v!r}")
+        for name in ("substeps", "smooth", "screen", "min_clusters", "box_cases"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 1):
+                raise OptionsError(f"DiagnoseOptions.{name} must be a positive integer, got {v!r}")
+        if not (isinstance(self.pair_top, (int, np.integer)) and self.pair_top >= 0):
+            raise OptionsError(f"DiagnoseOptions.pair_top must be an integer >= 0, got {self.pair_top!r}")
+        if self.smooth < 3 or self.smooth % 2 == 0:
+            raise OptionsError(f"DiagnoseOptions.smooth must be an odd number >= 3, got {self.smooth}")
+        for name in ("z_name", "z_separate"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v >= 0):
+                raise OptionsError(f"DiagnoseOptions.{name} must be a number >= 0, got {v!r}")
+        if not (isinstance(self.min_improvement, (int, float)) and 0 <= self.min_improvement < 1):
+            raise OptionsError(f"DiagnoseOptions.min_improvement must be in [0, 1), got {self.min_improvement!r}")
+        if not (isinstance(self.interval, (int, float)) and 0 < self.interval < 1):
+            raise OptionsError(f"DiagnoseOptions.interval must be in (0, 1), got {self.interval!r}")
+        if self.start_state not in ("past", "centered"):
+            raise OptionsError(f"DiagnoseOptions.start_state must be 'past' or 'centered', got {self.start_state!r}")
+        if self.interval_method not in INTERVAL_METHODS:
+            raise OptionsError(f"DiagnoseOptions.interval_method must be one of {INTERVAL_METHODS}, "
+                               f"got {self.interval_method!r}")  # fmt: skip
+        if not (isinstance(self.tube_horizon, (int, float)) and self.tube_horizon >= 0):
+            raise OptionsError(f"DiagnoseOptions.tube_horizon must be >= 0, got {self.tube_horizon!r}")
+
+
+#: parameter interval methods (:attr:`DiagnoseOptions.interval_method`)
+INTERVAL_METHODS = ("spread", "case", "group")

@@ -1,0 +1,215 @@
+"""Which effect: held-out likelihood comparisons, the naming rule and indistinguishable alternatives.
+
+Every candidate model (the base, single effects, pairs of effects) is fitted
+on the training folds and predicts the held-out cases of each fold
+(cross-fitting, :func:`cross_fit`), so that every prediction window has a
+held-out loss under every model: the squared multi-step prediction residuals
+in units of the sensor noise estimated from the data (the Gaussian negative
+log-likelihood up to constants).  Two models are compared by the paired
+difference of their held-out losses, summed per cluster (a test case; cases
+are cut into blocks when there are few) — the windows of one case share its
+maneuver's misfit, the clusters are independent — and its
+cluster-robust z statistic (:func:`paired_test`).  The same comparison serves
+nested and non-nested models (a Vuong-type test on held-out data).
+
+The decision (:func:`decide`):
+
+* a model with one effect is *admissible* when it beats the base model with
+  ``z >= z_name`` and lowers its held-out loss by at least
+  ``min_improvement`` (relevance: a tiny, real misfit of the base structure
+  does not earn a name);
+* a model with two effects is admissible when it beats *each* of its two
+  one-effect sub-models in the same way (each effect must earn its place);
+* the admissible model with the lowest held-out loss is chosen; every other
+  admissible model that is not nested with it and that it does not beat with
+  ``z >= z_separate`` is an *indistinguishable* alternative;
+* no admissible model: no effect in the library explains the gap.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from reachconf.diagnose.fit import Candidate, FitResult, fit_candidate, window_losses
+
+__all__ = ["Scored", "fold_assignment", "window_clusters", "paired_test", "cross_fit", "decide", "full_fit"]
+
+
+@dataclass
+class Scored:
+    """A candidate scored on held-out data: per-window held-out losses and the fold fits."""
+
+    candidate: Candidate
+    losses: np.ndarray
+    folds: list = field(default_factory=list)  # FitResult per fold (trained without that fold)
+
+    @property
+    def label(self) -> str:
+        return self.candidate.label
+
+    @property
+    def total(self) -> float:
+        return float(np.sum(self.losses))
+
+    def fold_params(self) -> dict:
+        """Mean effect parameters over the fold fits: ``(effect, target) -> tuple``."""
+        out = {}
+        for key in self.folds[0].effect_params:
+            out[key] = tuple(float(v) for v in np.mean([f.effect_params[key] for f in self.folds], axis=0))
+        return out
+
+
+def fold_assignment(groups, k: int, seed: int) -> np.ndarray:
+    """Fold of every case: stratified by group (each group's cases spread over the folds), seeded."""
+    rng = np.random.default_rng(seed)
+    folds = np.zeros(len(groups), dtype=np.int64)
+    members = {}
+    for i, g in enumerate(groups):
+        members.setdefault(g, []).append(i)
+    offset = int(rng.integers(k))
+    for g in sorted(members):
+        idx = rng.permutation(members[g])
+        for j, i in enumerate(idx):
+            folds[i] = (offset + j) % k
+        offset = (offset + len(idx)) % k
+    for f in range(k):  # every fold needs a case
+        if not np.any(folds == f):
+            counts = np.bincount(folds, minlength=k)
+            donor = int(np.argmax(counts))
+            folds[int(np.flatnonzero(folds == donor)[0])] = f
+    return folds
+
+
+def window_clusters(windows_per_case, min_clusters: int) -> np.ndarray:
+    """Cluster id of every prediction window: its case, or a block of its case when there are few cases."""
+    counts = np.asarray(windows_per_case, dtype=np.int64)
+    blocks = max(1, int(np.ceil(min_clusters / max(len(counts), 1))))
+    ids, next_id = [], 0
+    for n in counts:
+        b = max(1, min(blocks, int(n)))
+        ids.append(next_id + (np.arange(n) * b) // max(n, 1))
+        next_id += b
+    return np.concatenate(ids) if ids else np.zeros(0, dtype=np.int64)
+
+
+def paired_test(losses_a, losses_b, clusters) -> dict:
+    """Does model ``a`` predict the held-out windows better than ``b``?
+
+    Returns ``{"gain": share of b's held-out loss that a removes, "z": cluster-robust z statistic,
+    "clusters": number of clusters}``; ``z > 0`` favours ``a``.
+    """
+    D = np.bincount(clusters, weights=np.asarray(losses_b) - np.asarray(losses_a))
+    C = D.size
+    G = float(D.sum())
+    var = C / (C - 1) * float(np.sum((D - D.mean()) ** 2)) if C > 1 else 0.0
+    z = G / np.sqrt(var) if var > 0 else (np.inf if G > 0 else (-np.inf if G < 0 else 0.0))
+    total_b = float(np.sum(losses_b))
+    return {"gain": G / total_b if total_b > 0 else 0.0, "z": float(z), "clusters": int(C)}
+
+
+def cross_fit(base_model, cand: Candidate, data, folds, sigma, fit_names, options, cache, start=None) -> Scored:
+    """Fit ``cand`` on all folds but one, predict the left-out fold; for each fold.
+
+    ``start``: one dict of starting values for every fold, or a list with one per fold.
+    """
+    k = int(folds.max()) + 1
+    counts = np.array([d.starts.size for d in data])
+    first = np.concatenate([[0], np.cumsum(counts)])
+    losses = np.zeros(int(counts.sum()))
+    fits = []
+    for f in range(k):
+        train = [d for d, g in zip(data, folds) if g != f]
+        test_idx = np.flatnonzero(folds == f)
+        st = start[f] if isinstance(start, list) else start
+        fit = fit_candidate(base_model, cand, train, sigma, fit_names, options, cache, start=st)
+        held = window_losses(fit, [data[i] for i in test_idx], sigma, options)
+        pos = 0
+        for i in test_idx:
+            losses[first[i] : first[i + 1]] = held[pos : pos + counts[i]]
+            pos += counts[i]
+        fits.append(fit)
+    return Scored(cand, losses, fits)
+
+
+def _admissible(m: Scored, base: Scored, singles: dict, clusters, options) -> tuple:
+    """(admissible, tests): a one-effect model against the base, a two-effect model against each of its parts."""
+    keys = m.candidate.keys
+    if len(keys) == 1:
+        refs = [base]
+    else:
+        refs = [singles.get(frozenset({k})) for k in keys]
+        if any(r is None for r in refs):
+            return False, []
+    tests = []
+    ok = True
+    for r in refs:
+        t = paired_test(m.losses, r.losses, clusters)
+        t["against"] = r.label
+        tests.append(t)
+        ok &= t["z"] >= options.z_name and t["gain"] >= options.min_improvement
+    return bool(ok), tests
+
+
+def decide(base: Scored, models: list, clusters, options) -> dict:
+    """The naming rule (module docstring) on scored models.
+
+    Returns a dict: ``status`` ("named", "indistinguishable" or "none"),
+    ``chosen`` (the chosen :class:`Scored` or None), ``alternatives`` (list of
+    ``(Scored, test)``), ``tests`` (label -> admissibility tests),
+    ``admissible`` (labels), ``best`` (the lowest-loss model, admissible or not).
+    """
+    singles = {m.candidate.keys: m for m in models if len(m.candidate.keys) == 1}
+    tests, admissible = {}, []
+    for m in models:
+        ok, t = _admissible(m, base, singles, clusters, options)
+        tests[m.label] = t
+        if ok:
+            admissible.append(m)
+    ranked = sorted(models, key=lambda m: m.total)
+    best = ranked[0] if ranked else None
+    if not admissible:
+        return {"status": "none", "chosen": None, "alternatives": [], "tests": tests, "admissible": [], "best": best}
+    chosen = min(admissible, key=lambda m: m.total)
+    alternatives = []
+    for m in sorted(admissible, key=lambda m: m.total):
+        if m is chosen:
+            continue
+        a, b = chosen.candidate.keys, m.candidate.keys
+        if a <= b or b <= a:
+            continue  # nested: decided by admissibility
+        t = paired_test(chosen.losses, m.losses, clusters)
+        if t["z"] < options.z_separate:
+            alternatives.append((m, t))
+    return {"status": "indistinguishable" if alternatives else "named", "chosen": chosen,
+            "alternatives": alternatives, "tests": tests, "admissible": [m.label for m in admissible],
+            "best": best}  # fmt: skip
+
+
+def full_fit(base_model, scored: Scored, data, sigma, fit_names, options, cache, spread: bool = True) -> FitResult:
+    """The chosen candidate fitted on all cases, for its parameters and their intervals.
+
+    With ``spread``, it is also fitted on each group of cases alone (on each
+    case when there are fewer than three groups): ``FitResult.spread``.
+    """
+    start = {}
+    for f in scored.folds:
+        for key, th in f.effect_params.items():
+            start.setdefault(key, []).append(th)
+        for n, v in f.base_params.items():
+            start.setdefault(n, []).append(v)
+    start = {k: (tuple(np.mean(v, axis=0)) if isinstance(k, tuple) else float(np.mean(v))) for k, v in start.items()}
+    fit = fit_candidate(base_model, scored.candidate, data, sigma, fit_names, options, cache, start=start)
+    if spread:
+        groups = {}
+        for d in data:
+            groups.setdefault(d.group, []).append(d)
+        parts = list(groups.values()) if len(groups) >= 3 else [[d] for d in data]
+        if len(parts) >= 3:
+            st = {**fit.base_params, **fit.effect_params}
+            for sub in parts:
+                fg = fit_candidate(base_model, scored.candidate, sub, sigma, fit_names, options, cache, start=st)
+                for key, th in fg.effect_params.items():
+                    fit.spread.setdefault(key, []).append(tuple(float(v) for v in th))
+    return fit

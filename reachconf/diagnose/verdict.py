@@ -1,0 +1,115 @@
+"""The verdict of the gap diagnosis: machine-readable decision records and their text."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from reachconf.diagnose.select import paired_test
+
+__all__ = ["effect_entries", "model_entry", "decision_record", "verdict_text"]
+
+
+def effect_entries(fit, level: float, method: str) -> list:
+    """One dict per effect of a fitted candidate: parameters, standard deviations and intervals.
+
+    ``params_std`` and ``interval`` follow ``method`` (:attr:`DiagnoseOptions.interval_method`);
+    ``std_by_method`` and ``interval_by_method`` give all methods, ``group_estimates`` the per-group fits.
+    """
+    from reachconf.diagnose.options import INTERVAL_METHODS
+
+    out = []
+    for e, tgt in fit.candidate.parts:
+        key = (e.name, tgt)
+        th = fit.effect_params[key]
+        by_std = {m: dict(zip(e.params, fit.std(key, m))) for m in INTERVAL_METHODS}
+        by_iv = {m: {p: [float(a), float(b)] for p, (a, b) in zip(e.params, fit.interval(key, level, m))}
+                 for m in INTERVAL_METHODS}  # fmt: skip
+        bound = [p for p in e.params if f"{e.name}.{p}({tgt})" in fit.at_bound]
+        out.append({"effect": e.name, "target": tgt, "params": dict(zip(e.params, map(float, th))),
+                    "params_std": by_std[method], "interval": by_iv[method], "std_by_method": by_std,
+                    "interval_by_method": by_iv, "group_estimates": [list(v) for v in fit.spread.get(key, [])],
+                    "at_bound": bound})  # fmt: skip
+    return out
+
+
+def model_entry(m, base, clusters, decision) -> dict:
+    """A scored model (held-out) as a ranked entry; single effects also carry ``effect``/``target``/``params``."""
+    t = paired_test(m.losses, base.losses, clusters)
+    params = m.fold_params()
+    parts = [[e.name, tg] for e, tg in m.candidate.parts]
+    entry = {"label": m.label, "parts": parts, "held_out_loss": m.total, "prediction_gain": t["gain"],
+             "z_vs_base": t["z"], "admissible": m.label in decision["admissible"],
+             "tests": decision["tests"].get(m.label, []),
+             "params_by_effect": {f"{e}({tg})": dict(zip(_effect_params(m, e, tg), map(float, params[(e, tg)])))
+                                  for e, tg in parts}}  # fmt: skip
+    if len(parts) == 1:
+        e, tg = parts[0]
+        entry.update({"effect": e, "target": tg, "params": entry["params_by_effect"][f"{e}({tg})"]})
+    return entry
+
+
+def _effect_params(m, name, target):
+    for e, tg in m.candidate.parts:
+        if e.name == name and tg == target:
+            return e.params
+    return ()
+
+
+def _fmt_effect(ent) -> str:
+    ps = []
+    for p, v in ent["params"].items():
+        lo, hi = ent["interval"][p]
+        ps.append(f"{p} = {v:.4g}" + ("" if not np.isfinite(lo) else f" [{lo:.4g}, {hi:.4g}]"))
+    return f"{ent['effect']} on {ent['target']} ({', '.join(ps)})"
+
+
+def decision_record(decision, named, alternatives, options) -> dict:
+    """``GapReport.decision``: status, the named effects, indistinguishable alternatives, thresholds."""
+    chosen = decision["chosen"]
+    rec = {"status": decision["status"], "model": chosen.label if chosen else None, "named": named,
+           "alternatives": alternatives, "admissible": decision["admissible"],
+           "best": decision["best"].label if decision["best"] is not None else None,
+           "thresholds": {"z_name": options.z_name, "min_improvement": options.min_improvement,
+                          "z_separate": options.z_separate, "interval": options.interval,
+                          "interval_method": options.interval_method}}  # fmt: skip
+    if chosen is not None:
+        rec["tests"] = decision["tests"].get(chosen.label, [])
+    return rec
+
+
+def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
+    """One paragraph: what explains the gap, with intervals; or which explanations the data cannot separate."""
+    pre = "INTERRUPTED, partial result: " if interrupted else ""
+    if record["status"] == "none":
+        if best_entry is None:
+            return pre + "no effect was fitted"
+        return pre + (f"no effect in the library explains the gap (best: {best_entry['label']}, held-out prediction "
+                      f"loss {-100 * best_entry['prediction_gain']:+.0f} %, z = {best_entry['z_vs_base']:.1f}; naming "
+                      f"needs z >= {record['thresholds']['z_name']:g} and a loss reduction of at least "
+                      f"{100 * record['thresholds']['min_improvement']:.0f} %)")  # fmt: skip
+    named = record["named"]
+    tests = record.get("tests", [])
+    gain = ", ".join(f"{100 * t['gain']:.0f} % below {t['against']} (z = {t['z']:.1f})" for t in tests)
+    if record["status"] == "named":
+        text = " and ".join(_fmt_effect(e) for e in named) + f" explains the gap: held-out prediction loss {gain}"
+        if shrink is not None:
+            text += f"; the minimal W volume shrinks {shrink:.2f}x"
+        return pre + text
+    # indistinguishable: the effects shared by all explanations are named, the differing ones listed
+    alts = record["alternatives"]
+    shared = [e for e in named if all([e["effect"], e["target"]] in a["parts"] for a in alts)]
+    own = [e for e in named if e not in shared]
+    text = ""
+    if shared:
+        text += " and ".join(_fmt_effect(e) for e in shared) + " is part of the gap; "
+    options_text = [" + ".join(_fmt_effect(e) for e in own) or record["model"]]
+    for a in alts:
+        options_text.append(a["label"])
+    text += (f"the data cannot tell {' from '.join(options_text)} apart (held-out z = "
+             + ", ".join(f"{a['z']:.1f}" for a in alts) + f" < {record['thresholds']['z_separate']:g})")
+    seps = [a["separating"] for a in alts if a.get("separating")]
+    if seps:
+        s = seps[0]
+        text += (f"; {s['probe']['text']} would separate them (their predicted measurements differ by "
+                 f"{s['separation']:.1f} noise std over {s['horizon']:g} s)")
+    return pre + text
