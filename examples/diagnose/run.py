@@ -29,7 +29,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -40,36 +39,22 @@ from reachconf.io import atomic_write  # noqa: E402
 from reachconf.models import bicycle  # noqa: E402
 
 FIT = ("J_m", "b_L", "c_f", "c_r")
-ACTUATOR_OR_SENSOR = {"actuator_lag", "dead_time", "input_offset", "input_scale", "output_offset", "output_scale"}
 
 
 def judge(report, truth) -> dict:
-    """Did the report name the withheld effect (target and parameters within 25 %)?"""
-    named = not report.verdict.startswith("no effect")
-    best = report.best
-    if not truth:
-        claims = named and best["effect"] in ACTUATOR_OR_SENSOR
-        return {"correct": not claims, "named": f"{best['effect']}({best['target']})" if named else "none",
-                "params_ok": None}  # fmt: skip
-    if not named:
-        return {"correct": False, "named": "none", "params_ok": False}
-    found = {(best["effect"], best["target"]): best["params"]}
-    if report.combination:
-        for (e, t) in report.combination["parts"]:
-            found[(e, t)] = {k.split(".")[1].split("(")[0]: v for k, v in report.combination["params"].items()
-                             if k.startswith(f"{e}.") and k.endswith(f"({t})")}  # fmt: skip
-    first_ok = (best["effect"], best["target"]) in {(tr["effect"], tr["target"]) for tr in truth}
-    params_ok = True
-    for tr in truth:
-        got = found.get((tr["effect"], tr["target"]))
-        if got is None:
-            params_ok = False
-            continue
-        for k, v in tr["params"].items():
-            if not abs(got[k] - v) <= 0.25 * abs(v):
-                params_ok = False
-    return {"correct": bool(first_ok and params_ok), "named": f"{best['effect']}({best['target']})",
-            "params_ok": params_ok}  # fmt: skip
+    """Did the report name the withheld effects (first, or as indistinguishable), and no other?
+
+    ``correct``: every true effect named (or among the explanations the verdict
+    cannot separate) and no wrong name; ``params_ok``: the named true effects'
+    parameters within 25 % of the truth.
+    """
+    from protocol import judge as judge_decision
+
+    j = judge_decision(report.decision, truth)
+    ok = not j["wrong"] and not j["outcome"].startswith("WRONG") and all(v != "missed" for v in j["effects"].values())
+    params_ok = all(abs(p["relative_error"]) <= 0.25 for p in j["params"]) if truth else None
+    named = ", ".join(f"{e['effect']}({e['target']})" for e in report.named) or "none"
+    return {"correct": bool(ok), "named": named, "status": report.status, "params_ok": params_ok, "judge": j}
 
 
 def run_one(job):
@@ -84,34 +69,27 @@ def run_one(job):
     atomic_write(folder / "report.md", report.summary())
     report.save_plots(folder)
     verdict = judge(report, truth)
-    best = report.best
-    row = {"withheld": name, "truth": truth, **verdict, "verdict": report.verdict,
-           "best": {k: best[k] for k in ("effect", "target", "params", "params_std", "shrink_volume",
-                                         "prediction_gain")},
-           "runner_up": {k: report.ranked_effects[1][k] for k in ("effect", "target", "shrink_volume",
-                                                                   "prediction_gain")},
-           "combination": report.combination, "seconds_generate": t_gen, "seconds_diagnose": report.seconds,
+    row = {"withheld": name, "truth": truth, **verdict, "verdict": report.verdict, "named_effects": report.named,
+           "alternatives": report.decision.get("alternatives", []), "best": report.best,
+           "seconds_generate": t_gen, "seconds_diagnose": report.seconds, "cpu_seconds_diagnose": report.cpu_seconds,
            "cases": len(list(suite)), "before_after": report.before_after}  # fmt: skip
     return row
 
 
 def table(rows) -> str:
-    lines = ["| withheld | truth | named first | fitted parameters (± std) | W volume shrink | prediction gain | "
-             "runner-up (gain) | correct |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    """Markdown table of the withheld-effect suites."""
+    lines = ["| withheld | truth | verdict | named (95 % interval) | alternatives | W volume shrink | correct |",
+             "|---|---|---|---|---|---|---|"]  # fmt: skip
     for r in rows:
         truth = "; ".join(f"{t['effect']}({t['target']}) " + ", ".join(f"{k}={v:.4g}" for k, v in t["params"].items())
                           for t in r["truth"]) or "none"  # fmt: skip
-        b = r["best"]
-        ps = ", ".join(f"{k}={v:.4g}±{b['params_std'][k]:.1g}" for k, v in b["params"].items())
-        if r["combination"]:
-            ps += "; with " + ", ".join(f"{k}={v:.4g}" for k, v in r["combination"]["params"].items())
-        if r["named"] == "none":
-            ps = f"(best, not named: {b['effect']}({b['target']}) {ps})"
-        sv = "n/a" if b["shrink_volume"] is None else f"{b['shrink_volume']:.2f}"
-        ru = r["runner_up"]
-        lines.append(f"| {r['withheld']} | {truth} | {r['named']} | {ps} | {sv} | {100 * b['prediction_gain']:.0f} % | "
-                     f"{ru['effect']}({ru['target']}) ({100 * ru['prediction_gain']:.0f} %) | "
-                     f"{'yes' if r['correct'] else 'NO'} |")  # fmt: skip
+        ps = "; ".join(f"{e['effect']}({e['target']}) " + ", ".join(
+            f"{k}={v:.4g} [{e['interval'][k][0]:.4g}, {e['interval'][k][1]:.4g}]" for k, v in e["params"].items())
+            for e in r["named_effects"]) or "none"  # fmt: skip
+        alts = "; ".join(f"{a['label']} (z {a['z']:.1f})" for a in r["alternatives"]) or "-"
+        sv = r["before_after"].get("W_volume_shrink")
+        lines.append(f"| {r['withheld']} | {truth} | {r['status']} | {ps} | {alts} | "
+                     f"{'n/a' if sv is None else f'{sv:.2f}'} | {'yes' if r['correct'] else 'NO'} |")  # fmt: skip
     return "\n".join(lines) + "\n"
 
 

@@ -47,10 +47,12 @@ class Scored:
 
     @property
     def label(self) -> str:
+        """The candidate's label, e.g. ``actuator_lag(delta) + output_offset(psi)``."""
         return self.candidate.label
 
     @property
     def total(self) -> float:
+        """Total held-out loss over all windows."""
         return float(np.sum(self.losses))
 
     def fold_params(self) -> dict:
