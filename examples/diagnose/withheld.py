@@ -31,7 +31,7 @@ from reachconf.errors import OptionsError
 from reachconf.io import TestCase, TestSuite
 from reachconf.models import bicycle
 
-__all__ = ["WITHHELD", "noisy_ideal_plant", "withheld_suite", "DIAGNOSIS_MANEUVERS"]
+__all__ = ["WITHHELD", "noisy_ideal_plant", "withheld_suite", "DIAGNOSIS_MANEUVERS", "data_sheet", "nominal_bicycle_params"]
 
 #: name -> (plant changes, truth: list of {effect, target, params} in the library's terms)
 WITHHELD = {
@@ -82,14 +82,28 @@ def withheld_suite(name: str, repetitions: int = 3, maneuvers=DIAGNOSIS_MANEUVER
     return TestSuite(cases, name=f"withheld {name}"), [dict(tr) for tr in truth]
 
 
+def data_sheet() -> dict:
+    """The plant vehicle's data sheet in the bicycle's terms: wheelbase ``L``, ``b_L`` (CoG to rear axle over
+    ``L``), ``J_m`` (yaw inertia over mass), and the tyres' normalised cornering stiffness ``|p_ky1|`` as the
+    starting value of ``c_f, c_r`` (``commonroad-vehicle-models``' BMW 320i, ``parameters_vehicle2``)."""
+    from vehiclemodels.parameters_vehicle2 import parameters_vehicle2
+
+    p = parameters_vehicle2()
+    L = p.a + p.b
+    return {"L": L, "b_L": p.b / L, "J_m": p.I_z / p.m, "c_f": abs(p.tire.p_ky1), "c_r": abs(p.tire.p_ky1)}
+
+
 def nominal_bicycle_params(repetitions: int = 2, seed: int = 99) -> dict:
-    """Nominal ``J_m, c_f, c_r`` of the bicycle, as from an earlier identification on effect-free runs.
+    """Nominal parameters of the bicycle: the data sheet, with ``c_f, c_r`` identified on effect-free runs.
 
     Least squares by multi-step prediction (:func:`reachconf.diagnose.identify.identify`)
     on runs of the noisy ideal plant with *other* seeds than any diagnosis suite.
+    (Until issue 18 the report's vehicle geometry, ``L = 2.7``, ``b/L = 0.57``, was
+    used with ``J_m`` identified: a wrong wheelbase the joint fits then absorbed
+    into the effects, e.g. steering lags 5-10 % too short.)
     """
     suite, _ = withheld_suite("none", repetitions=repetitions, seed=seed)
-    # the geometry (L, b/L) is known from the data sheet; the yaw inertia and tyre stiffnesses are identified
-    res = identify(bicycle(), suite, ("J_m", "c_f", "c_r"), method="prediction",
+    sheet = data_sheet()
+    res = identify(bicycle(**sheet), suite, ("c_f", "c_r"), method="prediction",
                    options=DiagnoseOptions(prior=10.0, param_bounds=0.9))  # fmt: skip
-    return res.params
+    return {**sheet, **res.params}

@@ -49,7 +49,8 @@ class DiagnoseOptions:
         frozen) that are fitted jointly with the base parameters and scored on
         held-out cases.
     pair_top : int, default 4
-        The best ``pair_top`` single effects (held-out) are also scored in pairs.
+        The best ``pair_top`` single effects (held-out; among those that beat
+        the base with a paired z of at least 1) are also scored in pairs.
     z_name : float, default 3.0
         An effect (or a second effect) is added only if its held-out gain is
         significant: paired z statistic of the held-out losses over clusters
@@ -78,7 +79,7 @@ class DiagnoseOptions:
     box_segment : float, default 2.0
         The held-out cases are cut into segments of this length (s) for the
         minimal-box scores (the box is the hull of the segments' boxes).
-    box_cases : int, default 4
+    box_cases : int, default 2
         Number of held-out cases whose minimal boxes are computed before/after.
     tube_horizon : float, default 2.0
         Horizon (s) of the before/after reach tubes of one held-out case (0: none).
@@ -102,7 +103,7 @@ class DiagnoseOptions:
     min_clusters: int = 8
     box_rate: float = 20.0
     box_segment: float = 2.0
-    box_cases: int = 4
+    box_cases: int = 2
     tube_horizon: float = 2.0
 
     def __post_init__(self):

@@ -16,7 +16,7 @@
    model; the best ``screen`` are fitted jointly with the base parameters by
    cross-fitting (the cases are split into folds, stratified by group; each
    fold is predicted by a model fitted on the others), and so are pairs of the
-   best ``pair_top``.  Models are compared by their held-out prediction loss
+   best ``pair_top`` of those that predict better than the base at all (z >= 1).  Models are compared by their held-out prediction loss
    with cluster-robust paired tests; an effect is named only when it is both
    significant and relevant; explanations the data cannot separate are
    reported together, with the probe maneuver that would separate them
@@ -53,7 +53,7 @@ from reachconf.diagnose.howfar import (
 from reachconf.diagnose.locate import locate_gap
 from reachconf.diagnose.probes import band_shares, separating_probe
 from reachconf.diagnose.report import GapReport
-from reachconf.diagnose.select import cross_fit, decide, fold_assignment, full_fit, window_clusters
+from reachconf.diagnose.select import cross_fit, decide, fold_assignment, full_fit, paired_test, window_clusters
 from reachconf.diagnose.sparse import feature_dictionary, sparse_features
 from reachconf.diagnose.verdict import decision_record, effect_entries, model_entry, verdict_text
 from reachconf.errors import ConformanceError, OptionsError
@@ -115,7 +115,7 @@ def _start(fits, base_params=None):
     return out
 
 
-def _which(model, prepared, candidates, folds, sigma, fit_names, options, cache, bar, state):
+def _which(model, prepared, candidates, folds, clusters, sigma, fit_names, options, cache, bar, state):
     """Base, screening, cross-fitted singles and pairs, into ``state`` (kept when interrupted):
     ``base_full``, ``base`` (scored), ``models`` (scored singles and pairs), ``screen`` (screening fits)."""
     base_full = fit_candidate(model, Candidate(()), prepared, sigma, fit_names, options, cache)
@@ -136,7 +136,9 @@ def _which(model, prepared, candidates, folds, sigma, fit_names, options, cache,
         st = {**base_full.base_params, **f.effect_params}
         models.append(cross_fit(model, f.candidate, prepared, folds, sigma, fit_names, options, cache, start=st))
         bar.update(1)
-    top = sorted(models, key=lambda m: m.total)[: options.pair_top]
+    # pairs of the best singles that predict the held-out cases better than the base at all (z >= 1)
+    useful = [m for m in models if paired_test(m.losses, state["base"].losses, clusters)["z"] >= 1.0]
+    top = sorted(useful, key=lambda m: m.total)[: options.pair_top]
     for a, b in combinations(top, 2):
         if a.candidate.keys & b.candidate.keys:
             continue
@@ -218,7 +220,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     interrupted = False
     state = {"screen": [], "models": []}
     try:
-        _which(model, prepared, candidates, folds, sigma, fit_names, options, cache, bar, state)
+        _which(model, prepared, candidates, folds, clusters, sigma, fit_names, options, cache, bar, state)
     except KeyboardInterrupt:  # pragma: no cover - interactive: decide on what was scored so far
         if "base" not in state:
             raise
