@@ -39,9 +39,9 @@ def _results(tube):
     front = ParetoFront([_box([-0.5, -1.0], [0.5, 1.0]), _box([-1.0, -0.2], [1.0, 0.2])], [(0, 1), (1, 0)],
                         _box([-1.0, -1.0], [1.0, 1.0]), ("w1", "w2"), "trace")  # fmt: skip
     location = GapLocation(["w"], {"w": 1.0}, {"w": [-1.0, 1.0]}, {"c1": []}, {}, {"w": {"a": 0.5}})
-    effect = {"effect": "dead_time", "target": "u", "params": {"T": 0.1}, "params_std": {"T": 0.01},
-              "prediction_cost": 0.5, "prediction_gain": 0.5, "shrink_volume": 2.0, "shrink_per_channel": {"w": 2.0},
-              "base_params": {}}  # fmt: skip
+    effect = {"label": "dead_time(u)", "parts": [["dead_time", "u"]], "held_out_loss": 0.5, "prediction_gain": 0.5,
+              "z_vs_base": 4.0, "admissible": True, "tests": [], "params_by_effect": {"dead_time(u)": {"T": 0.1}},
+              "effect": "dead_time", "target": "u", "params": {"T": 0.1}}  # fmt: skip
     report = GapReport({"location": location.to_dict()}, [effect], "dead_time on u explains the gap",
                        {"prediction_cost": 1.0}, None, [],
                        {"W": {"w": {"before": [-1.0, 1.0], "after": [-0.5, 0.5], "shrink": 2.0}}},
