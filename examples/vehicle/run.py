@@ -1,6 +1,7 @@
 """Vehicle use case end to end (source report sections 4-5): Tables 3, 4, 6, 8 and Figures 7-8.
 
     python examples/vehicle/run.py --out DIR [--quick] [--workers 2 | --scheduler tcp://host:8786]
+                                   [--steering rate_limited]
 
 0. the campaign: 4 maneuvers x 2 lateral accelerations x 5 repetitions from the
    multi-body plant (``reachconf.datasets.vehicle_campaign``), saved to DIR/campaign and reused;
@@ -11,6 +12,9 @@
 3. reachset-conformance synthesis of the closed-loop model (tracking
    controller, identified first-order actuators, bicycle) for all eight
    maneuvers: steps 1-3 per case and the merge per maneuver (Table 6);
+   ``--steering rate_limited``: with the identified rate-limited steering
+   actuator instead (:func:`reachconf.models.bicycle_closed_loop_rate_limited`,
+   whose parameters are identified in step 1 in every run);
 4. X-Y reach tubes with the measured traces, one per maneuver (Figures 7, 8);
 5. Table 8: trace bounds of f_B against the plant with every actuator effect
    and all noise switched off, open loop (feed-forward only) and closed loop.
@@ -34,13 +38,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from identify import fit_actuators, fit_bicycle  # noqa: E402
+from identify import fit_actuators, fit_bicycle, fit_rate_limited_steering  # noqa: E402
 
 import reachconf as rc  # noqa: E402
 from reachconf.datasets.vehicle_campaign import NO_EFFECTS, PlantEffects, make_campaign  # noqa: E402
 from reachconf.conformance import SynthesisOptions, synthesize_W  # noqa: E402
 from reachconf.io import atomic_write, load_suite  # noqa: E402
-from reachconf.models import bicycle, bicycle_actuated, bicycle_closed_loop_actuated  # noqa: E402
+from reachconf.models import (bicycle, bicycle_actuated, bicycle_closed_loop_actuated,  # noqa: E402
+                              bicycle_closed_loop_rate_limited)
 from reachconf.plot import plot_measured, save_figure  # noqa: E402
 from reachconf.runner import Pool, WorkersLost  # noqa: E402
 
@@ -176,7 +181,8 @@ def markdown(result) -> str:
         return "\n".join(lines + ["## Timings [s]", "", "| step | seconds |", "|---|---|"]
                          + [f"| {k} | {v:.1f} |" for k, v in result["timings"].items()]) + "\n"
     names = [f"w{i}" for i in range(1, 7)]
-    lines += ["## Table 6 analogue: W_RC,Mnvr of the closed-loop model with actuators", "",
+    steer = result.get("table6_steering", "first_order").replace("_", "-")
+    lines += [f"## Table 6 analogue: W_RC,Mnvr of the closed-loop model with actuators ({steer} steering)", "",
               "| group | " + " | ".join(names) + " | α | conformant | runs conformant alone |", "|---" * 10 + "|"]
     for g, box_ in result["table6"].items():
         runs = [c for c in result["table6_cases"].values() if c["group"] == g]
@@ -222,6 +228,9 @@ def main(argv=None):
                          f"first {QUICK['horizon']:g} s")  # fmt: skip
     ap.add_argument("--workers", type=int, default=None, help="local worker processes (one pool for the whole run)")
     ap.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://host:port instead of --workers")
+    ap.add_argument("--steering", choices=("first_order", "rate_limited"), default="first_order",
+                    help="steering actuator of Table 6's closed-loop model (default: first_order, which verifies "
+                         "more maneuvers; see the README)")  # fmt: skip
     ap.add_argument("--compare-requested", action="store_true",
                     help="also f_B driven by the requests (always with --quick; about 85 s on the full campaign)")
     ap.add_argument("--only-trace-tables", action="store_true",
@@ -273,11 +282,14 @@ def _run(args, out, suite, plain, pool, timings, result):
     params, ident = fit_bicycle(suite)
     fB = bicycle(**params)
     act = fit_actuators(suite)
+    steering = fit_rate_limited_steering(suite)
     timings["identification"] = time.perf_counter() - t0
     result.update(bicycle_parameters=params, identification=ident, actuator_parameters=act, cases=len(suite),
+                  steering_rate_limited=steering, table6_steering=args.steering,
                   V={"table3": V_TABLE3.tolist(), "table4": V_TABLE4.tolist(), "table5": V_TABLE5.tolist(),
                      "table6": V_TABLE6.tolist(), "table8": V_TABLE8.tolist()})  # fmt: skip
-    print(f"1. bicycle {params}, actuators {act['params']} ({timings['identification']:.1f} s)", flush=True)
+    print(f"1. bicycle {params}, actuators {act['params']}, rate-limited steering {steering['params']} "
+          f"({timings['identification']:.1f} s)", flush=True)  # fmt: skip
 
     # 2. Tables 3 and 4 at the recordings' 100 Hz and at 10 Hz (and f_B with the requests, to show what the
     # actuator model buys)
@@ -305,7 +317,10 @@ def _run(args, out, suite, plain, pool, timings, result):
 
     # 3. Table 6: closed-loop synthesis for all eight maneuvers
     t0 = time.perf_counter()
-    fCL = bicycle_closed_loop_actuated(**params, **act["params"])
+    if args.steering == "rate_limited":
+        fCL = bicycle_closed_loop_rate_limited(**params, **{**act["params"], **steering["params"]})
+    else:
+        fCL = bicycle_closed_loop_actuated(**params, **act["params"])
     cl_suite = suite.map(lambda c: c.select(REF, fCL.output_names))
     ropts = REACH_TABLE6
     # α to 2^-8 per run and 2^-6 for the merged box; coarser runs' boxes make a larger hull, which for SL_4

@@ -120,3 +120,27 @@ def test_ctrl_c_keeps_the_finished_tables(quick, monkeypatch, tmp_path):
     assert res["interrupted"] is True
     assert "table3" in res and "table4" in res and "table6" not in res and "table8" not in res
     assert res["timings"]["table4"] >= 0
+
+
+def test_rate_limited_steering_is_identified(quick):
+    """The rate-limited steering actuator is identified in every run, near the plant's scale and offset."""
+    _, _, res = quick
+    st = res["steering_rate_limited"]
+    a = st["params"]
+    assert abs(a["delta_s"] - 0.28) < 0.05 and abs(np.degrees(a["delta_off"]) - 1.09) < 0.3
+    assert 0.05 <= a["r_delta"] <= 5.0 and a["k_delta"] > 0.5
+    assert np.degrees(st["rms"]) < 0.5 and set(st["max_error"]) == {"LC_2", "SW_2"}
+    assert res["table6_steering"] == "first_order"
+
+
+@pytest.mark.slow
+def test_table6_with_the_rate_limited_steering(tmp_path):
+    """--steering rate_limited: Table 6's synthesis runs on the rate-limited closed loop (quick campaign)."""
+    run = load_example("vehicle")
+    assert run.main(["--quick", "--out", str(tmp_path), "--steering", "rate_limited"]) == 0
+    res = json.loads((tmp_path / "vehicle.json").read_text())
+    assert res["table6_steering"] == "rate_limited"
+    assert set(res["table6"]) == {"LC_2", "SW_2"}
+    for g, W in res["table6"].items():
+        assert np.all(np.isfinite(W)) and res["table6_conformant"][g] in (True, False)
+    assert "rate-limited steering" in (tmp_path / "vehicle.md").read_text()
