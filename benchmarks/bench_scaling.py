@@ -3,7 +3,11 @@
 
 Goal (issue 20): a speed-up of at least 1.7x on 2 cores for both parallel runs.  Run it on a quiet machine:
 
-    python benchmarks/bench_scaling.py [--campaign out/vehicle/campaign] [--cases 40] [--skip-dask]
+    python benchmarks/bench_scaling.py [--campaign out/vehicle/campaign] [--cases 40] [--skip-dask] [--skip-fresh]
+
+Last, the first case on a FRESH Dask worker (a worker process with empty ``REACHCONF_CACHE`` and
+``NUMBA_CACHE_DIR``, as on a new machine): before (the worker builds the model and compiles the kernels itself,
+as every worker did before issue 20) and after (the run ships the generated model and numba's caches to it).
 
 The campaign is the vehicle example's (``examples/vehicle/run.py``; generated into ``--campaign`` when missing,
 about 2 min), identified as the example does, with the example's Table 6 options.  Printed per run: wall time,
@@ -101,6 +105,29 @@ def on_dask(client, fn):
     return result, [after[w] - before.get(w, 0.0) for w in sorted(after)]
 
 
+def fresh_worker_first_case(model, case_suite, V, opts, ship: bool) -> float:
+    """Wall seconds of a one-case synthesis on a new 1-worker cluster whose worker has empty caches.
+
+    ``ship=False``: the whole synthesis is one Dask task on the worker, which builds the model and compiles
+    the kernels itself (what every worker did before issue 20).  ``ship=True``: ``synthesize_W(scheduler=...)``,
+    which installs this machine's compiled model and kernels on the worker first.
+    """
+    import tempfile
+
+    from distributed import Client, LocalCluster
+
+    with tempfile.TemporaryDirectory(prefix="reachconf-fresh-") as tmp:
+        env = {"REACHCONF_CACHE": f"{tmp}/cache", "NUMBA_CACHE_DIR": f"{tmp}/numba", "REACHCONF_PROGRESS": "0"}
+        with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None, env=env) as cl:
+            with Client(cl) as client:
+                t0 = time.perf_counter()
+                if ship:
+                    synthesize_W(model, case_suite, V, opts, scheduler=cl.scheduler_address, progress=False)
+                else:
+                    client.submit(synthesize_W, model, case_suite, V, opts, progress=False, pure=False).result()
+                return time.perf_counter() - t0
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--campaign", default=str(ROOT / "out" / "vehicle" / "campaign"))
@@ -108,6 +135,7 @@ def main():
     ap.add_argument("--skip-dask", action="store_true")
     ap.add_argument("--pareto-group", default="LC_2")
     ap.add_argument("--pareto-iterations", type=int, default=3)
+    ap.add_argument("--skip-fresh", action="store_true", help="skip the first case on a fresh worker")
     args = ap.parse_args()
     os.environ.setdefault("REACHCONF_PROGRESS", "0")
     vehicle = load_vehicle_example()
@@ -168,6 +196,13 @@ def main():
               f"{prow[0]['wall'] / prow[1]['wall']:.2f}x, identical: {'yes' if pareto_same else 'NO'}")
     else:
         print(f"Pareto front skipped: {group} has no conformant W_RC,Mnvr")
+    if not args.skip_fresh:
+        one = dataclasses.replace(opts, merge=False)
+        before = fresh_worker_first_case(model, warm, V, one, ship=False)
+        print(f"first case on a fresh worker, before (the worker builds and compiles): {before:.1f} s", flush=True)
+        after = fresh_worker_first_case(model, warm, V, one, ship=True)
+        print(f"first case on a fresh worker, after (compiled code shipped): {after:.1f} s "
+              f"({before / after:.1f}x faster); the case: the first second of {first.name}")  # fmt: skip
     return 0
 
 

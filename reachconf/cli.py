@@ -240,8 +240,8 @@ def cmd_synth(args, run):
         raise DataError(f"{spec.path}: synthesis needs sets.V")
     suite = _select_cases(spec, args)
     check_scheduler(args.scheduler)
-    res = synthesize_W(spec.model, suite, spec.V, spec.synthesis_options, workers=args.workers or spec.workers,
-                       scheduler=args.scheduler)  # fmt: skip
+    workers = args.workers or (None if args.scheduler else spec.workers)  # --scheduler overrides the file's workers
+    res = synthesize_W(spec.model, suite, spec.V, spec.synthesis_options, workers=workers, scheduler=args.scheduler)
     print(res.table())
     for c in res.cases.values():
         print(f"  {c.name}: alpha = {c.alpha:.4g}, W_RC {c.verdict.label}, {c.seconds:.2f} s"

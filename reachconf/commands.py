@@ -58,7 +58,8 @@ def cmd_pareto(args, run, load, select_cases, savefig):
     suite = select_cases(spec, args)
     out = run.outputs.folder
     run.partial = {}
-    with Pool(args.workers or spec.workers, args.scheduler, preload=PRELOAD) as pool:
+    workers = args.workers or (None if args.scheduler else spec.workers)  # --scheduler overrides the file's workers
+    with Pool(workers, args.scheduler, preload=PRELOAD) as pool:
         print(f"workers: {pool.describe()}", flush=True)
         start = spec.W
         if start is None:

@@ -130,3 +130,28 @@ def test_warmup_bad_input_is_one_line(capsys, argv, needle):
     status, stdout, err = main(capsys, "warmup", *argv)
     assert status == 2 and len(err) == 1 and needle in err[0], err
     assert "ready" not in stdout
+
+
+def test_scheduler_overrides_the_run_files_workers(run_file, tmp_path, capsys, monkeypatch):
+    import socket
+
+    from reachconf.conformance.synthesis import SynthesisResult
+
+    seen = {}
+
+    def fake(model, suite, V, options, workers=None, scheduler=None, **kwargs):
+        seen.update(workers=workers, scheduler=scheduler)
+        W = Interval(-np.ones(model.q), np.ones(model.q))
+        cases = {c.name: CaseSynthesis(c.name, c.group, W, W, W, 1.0, True, 0.1) for c in suite}
+        return SynthesisResult(cases, {}, {}, {}, V, model.disturbance_names, 0.1)
+
+    patch(monkeypatch, "reachconf.conformance.synthesis.synthesize_W", fake)
+    run_file.write_text("workers = 2\n" + run_file.read_text())
+    with socket.socket() as server:  # something listening, for the address probe
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+        address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+        assert main(capsys, "synth", run_file, "--scheduler", address)[0] == 0
+        assert seen == {"workers": None, "scheduler": address}
+        assert main(capsys, "synth", run_file)[0] == 0
+        assert seen == {"workers": 2, "scheduler": None}
