@@ -14,6 +14,11 @@ Taylor-mode remainders, both orders)::
     python benchmarks/bench_codegen.py [--models vanderpol,bicycle] [--baseline REF | --no-baseline]
                                        [--baseline-timeout 1800]
 
+``--reach`` also compares the reach results of both remainders (``ReachOptions.remainder``
+"taylor" against "tensor") on the problems of ``bench_reach.py``: the width of the final set
+and of the tube's box per state, tensor over Taylor (>= 1: the Taylor remainder is as tight or
+tighter), and the warm reach time.
+
 Models are passed to the child processes as sympy expressions, so the
 baseline builds exactly the same equations (also of models it did not ship,
 such as ``bicycle_closed_loop_rate_limited``).  Prints wall and CPU seconds
@@ -123,6 +128,54 @@ def fmt(r: dict) -> str:
     return f"{r['gen']:6.1f} + {r['compile']:6.1f} = {r['wall']:6.1f} s ({r['cpu']:5.1f} CPU), {r['bytes'] / 1e3:5.0f} kB"
 
 
+def reach_problems():
+    """``(name, model, X0, times, inputs, W, options)`` of ``bench_reach.py``."""
+    import numpy as np
+
+    import reachconf as rc
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import bench_reach as br
+    from reachconf.models import laub_loomis, vanderpol
+
+    x0 = np.array([1.2, 1.05, 1.5, 2.4, 1.0, 0.1, 0.45])
+    rows = [("vanderpol", vanderpol(mu=1.0), rc.Interval([1.25, 2.35], [1.55, 2.45]), 7.0, None, None,
+             br.VDP_OPTIONS)]  # fmt: skip
+    for W in (0.01, 0.05):
+        rows.append((f"laub_loomis W={W}", laub_loomis(), rc.Interval(x0 - W, x0 + W), 20.0, None, None,
+                     br.LL_OPTIONS[W]))  # fmt: skip
+    rows.append(("closed-loop bicycle LC", *br.closed_loop_lc_problem()))
+    return rows
+
+
+def compare_reach():
+    """Print the reach of both remainders side by side (see the module docstring)."""
+    import dataclasses
+
+    import numpy as np
+
+    import reachconf as rc
+
+    print("\n| problem | final set width, tensor / taylor (min, median, max over states) | tube box, same | "
+          "warm seconds taylor / tensor |")  # fmt: skip
+    print("|---|---|---|---|")
+    for name, model, X0, times, U, W, opts in reach_problems():
+        out = {}
+        for rem in ("taylor", "tensor"):
+            o = dataclasses.replace(opts, remainder=rem, progress=False)
+            rc.reach(model, X0, times, inputs=U, W=W, options=o)  # warm-up (and the build)
+            t0 = time.perf_counter()
+            tube = rc.reach(model, X0, times, inputs=U, W=W, options=o)
+            fin = tube.final_set().interval()
+            hull = tube.interval_hull()
+            out[rem] = (fin.hi - fin.lo, hull.hi - hull.lo, time.perf_counter() - t0)
+        r_fin = out["tensor"][0] / out["taylor"][0]
+        r_hull = out["tensor"][1] / out["taylor"][1]
+        print(f"| {name} | {r_fin.min():.3f}, {np.median(r_fin):.3f}, {r_fin.max():.3f} | {r_hull.min():.3f}, "
+              f"{np.median(r_hull):.3f}, {r_hull.max():.3f} | {out['taylor'][2]:.2f} / {out['tensor'][2]:.2f} |",
+              flush=True)  # fmt: skip
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--models", default=",".join(MODELS))
@@ -130,7 +183,11 @@ def main(argv=None):
     ap.add_argument("--no-baseline", action="store_true")
     ap.add_argument("--baseline-timeout", type=float, default=1800.0, help="seconds per baseline build")
     ap.add_argument("--json", help="also write the figures to this file")
+    ap.add_argument("--reach", action="store_true", help="only compare the reach results of both remainders")
     args = ap.parse_args(argv)
+    if args.reach:
+        compare_reach()
+        return
     names = [s for s in args.models.split(",") if s]
     print(f"load average at start: {os.getloadavg()}; {os.cpu_count()} CPUs")
     rows = {}

@@ -104,13 +104,11 @@ def bench_laub_loomis(repeat):
     return rows
 
 
-def bench_closed_loop_bicycle(repeat):
-    try:
-        from reachconf.datasets.vehicle_campaign import reference_path
-        from reachconf.models import bicycle_closed_loop
-    except ImportError as exc:  # pragma: no cover - campaign not available
-        return {"benchmark": "closed-loop bicycle", "verified": None, "seconds": float("nan"),
-                "detail": f"skipped: {exc}", "flowstar": "-", "settings": None}  # fmt: skip
+def closed_loop_lc_problem():
+    """The closed-loop bicycle's 8-s lane change: ``(model, X0, times, inputs, W, options)``."""
+    from reachconf.datasets.vehicle_campaign import reference_path
+    from reachconf.models import bicycle_closed_loop
+
     model = bicycle_closed_loop()
     ref = reference_path("LC", 2.0, 10.0)
     t = np.round(np.arange(0.0, 8.0 + 1e-9, 0.01), 10)  # 8 s: the path, then straight on
@@ -123,8 +121,15 @@ def bench_closed_loop_bicycle(repeat):
     W = rc.Interval([-0.0831, -0.1173, -0.0593, -0.3203, -0.1503, -0.4414],
                     [0.0552, 0.0274, 0.0678, 0.7775, 0.1051, 0.7231])  # fmt: skip
     opts = rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.01, zonotope_order=20)
-    times = t[::2]  # 50 Hz samples (time-point sets), 0.01 s steps
-    Us = U[::2]
+    return model, X0, t[::2], U[::2], W, opts  # 50 Hz samples (time-point sets), 0.01 s steps
+
+
+def bench_closed_loop_bicycle(repeat):
+    try:
+        model, X0, times, Us, W, opts = closed_loop_lc_problem()
+    except ImportError as exc:  # pragma: no cover - campaign not available
+        return {"benchmark": "closed-loop bicycle", "verified": None, "seconds": float("nan"),
+                "detail": f"skipped: {exc}", "flowstar": "-", "settings": None}  # fmt: skip
 
     def run():
         return rc.reach(model, X0, times, inputs=Us, W=W, options=opts)
