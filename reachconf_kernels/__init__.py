@@ -23,3 +23,7 @@ Zonotopes
 Points
     Batches of points are ``(N, n)`` arrays, one point per row.
 """
+
+from reachconf_kernels import cache_stamp
+
+cache_stamp.drop_stale_caches()  # numba does not notice a changed callee in another module (see cache_stamp)

@@ -105,9 +105,17 @@ def model_cache_bundle(paths) -> dict:
 
 def kernel_cache_bundle() -> dict:
     """The bundle of numba's caches of every :mod:`reachconf_kernels` module compiled on this machine."""
+    from reachconf_kernels.cache_stamp import STAMP_NAME  # the client has the kernels loaded already
+
     numba = []
     for source in sorted(kernels_source_dir().glob("*.py")):
         numba += [("kernels", source.name, f.name, f.read_bytes()) for f in _numba_files(source)]
+    init = kernels_source_dir() / "__init__.py"
+    folder = numba_cache_dir(init)
+    if folder is not None and (folder / STAMP_NAME).is_file():
+        # the stamp of the sources these caches were compiled from: without it, a worker that
+        # imports the kernels after installing the bundle would drop the caches as stale
+        numba.append(("kernels", init.name, STAMP_NAME, (folder / STAMP_NAME).read_bytes()))
     return {"models": [], "numba": numba}
 
 
