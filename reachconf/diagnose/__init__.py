@@ -25,6 +25,7 @@ from reachconf.diagnose.locate import GapLocation, locate_gap
 from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.diagnose.pipeline import diagnose
 from reachconf.diagnose.report import GapReport
+from reachconf.diagnose.tyres import TIRE_FIALA  # noqa: F401 - registers the tyre effect
 
 __all__ = ["diagnose", "DiagnoseOptions", "GapReport", "GapLocation", "locate_gap", "EFFECTS", "Effect",
            "register_effect", "identify", "Identification"]  # fmt: skip

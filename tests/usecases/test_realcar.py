@@ -1,0 +1,113 @@
+"""Real-car use case (issue 17): the suite, V from the data, Table 3 per |ay| band, reachset windows."""
+
+import json
+
+import numpy as np
+import pytest
+from conftest import DATA_ROOT, load_example
+
+from reachconf.io import load_suite
+
+REAL = DATA_ROOT / "realcar"
+needs_data = pytest.mark.skipif(not (REAL / "stanford_track_100hz.csv.gz").is_file(), reason="no real-car data")
+
+
+@pytest.fixture(scope="module")
+def ex():
+    return load_example("realcar")
+
+
+@pytest.fixture(scope="module")
+def data_mod():
+    import importlib.util
+
+    from conftest import REPO_ROOT
+
+    spec = importlib.util.spec_from_file_location("realcar_data", REPO_ROOT / "examples" / "realcar" / "data.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="module")
+def quick(ex, tmp_path_factory):
+    out = tmp_path_factory.mktemp("realcar")
+    assert ex.main(["--data", str(REAL), "--out", str(out), "--quick"]) == 0
+    return out, json.loads((out / "realcar.json").read_text())
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_noise_sigma_recovers_white_noise_on_a_smooth_signal(data_mod, seed):
+    rng = np.random.default_rng(seed)
+    t = np.arange(0, 60, 0.01)
+    sigma = rng.uniform(0.002, 0.05)
+    smooth = rng.uniform(1, 3) * np.sin(2 * np.pi * rng.uniform(0.05, 0.5) * t) + rng.uniform(-5, 5)
+    est = data_mod.noise_sigma(smooth + rng.normal(0, sigma, t.size))
+    assert 0.9 * sigma < est < 1.15 * sigma
+    # no noise: only the signal's own curvature, at most its largest second difference / sqrt(6)
+    assert data_mod.noise_sigma(smooth) <= 1.4826 * np.max(np.abs(np.diff(smooth, 2))) / np.sqrt(6)
+
+
+def test_glitch_repair_removes_isolated_spikes_only(data_mod):
+    t = np.arange(0, 10, 0.01)
+    x = 0.2 * np.sin(t)
+    y = x.copy()
+    y[[100, 555]] += [0.5, -0.4]
+    fixed, idx = data_mod.repair_glitches(y)
+    assert list(idx) == [100, 555]
+    np.testing.assert_allclose(fixed, x, atol=1e-4)
+    same, none = data_mod.repair_glitches(x)
+    assert none.size == 0 and np.array_equal(same, x)
+
+
+def test_bad_data_folder_is_one_line_exit_2(ex, tmp_path, capsys):
+    assert ex.main(["--data", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no such data folder" in err[0]
+    (tmp_path / "d").mkdir()
+    assert ex.main(["--data", str(tmp_path / "d"), "--out", str(tmp_path / "o")]) == 2
+    assert "missing stanford_track_100hz.csv.gz" in capsys.readouterr().err
+
+
+@needs_data
+def test_suite_is_written_in_the_documented_format_with_ay(quick):
+    out, res = quick
+    suite = load_suite(out / "suite")
+    assert len(suite) == res["cases"] == 6
+    c = suite[0]
+    assert c.input_names == ("ax", "delta") and c.output_names == ("vx", "vy", "omega")
+    assert "ay" in c.extras and c.t.size == 1001
+    assert abs(c.duration - 10.0) < 1e-6
+    # the four isolated steering glitches of the recording (repaired before it is cut)
+    assert np.allclose(res["steering_glitches_repaired_at"], [207.27, 503.49, 524.85, 671.67])
+
+
+@needs_data
+def test_table3_bands_and_their_hull(quick):
+    out, res = quick
+    tab = res["table3"]
+    run = np.array(tab["whole run"])
+    bands = [np.array(b) for g, b in tab.items() if g != "whole run" and b is not None]
+    assert len(bands) >= 3
+    for b in bands:
+        assert np.all(b[:, 0] <= b[:, 1]) and np.all(run[:, 0] <= b[:, 0]) and np.all(b[:, 1] <= run[:, 1])
+    assert np.allclose(run[:, 0], np.min([b[:, 0] for b in bands], axis=0))
+    # the hard band needs a larger yaw disturbance than the calm one (the tyres leave their linear range)
+    calm, hard = np.array(tab["|ay| 0-4"]), np.array(tab["|ay| 8-12"])
+    assert np.ptp(hard[2]) > 2 * np.ptp(calm[2])
+    v = res["V"]["per_output"]
+    assert all(0 < h < 0.1 for _, h in v.values())
+    assert sum(res["table3_windows"].values()) == 30
+    md = (out / "realcar.md").read_text()
+    assert "Table 3 analogue" in md and "\\|ay\\| 8-12" in md
+
+
+@needs_data
+def test_reachset_windows_are_decided_and_pictures_written(quick):
+    out, res = quick
+    share = res["reachset"]["all"]
+    assert share["windows"] == 30
+    assert share["conformant"] >= 27  # measured: 30 of 30 with the band's W
+    assert len(res["reachset_windows"]) == 30
+    for name in ("tube_calm.png", "tube_hard.png", "W_bands.png"):
+        assert (out / name).stat().st_size > 10_000
