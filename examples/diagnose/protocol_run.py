@@ -21,7 +21,8 @@ from withheld import nominal_bicycle_params
 
 from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.io import atomic_write
-from reachconf.runner import run_cases
+from reachconf.io.jsonfile import json_text
+from reachconf.runner import Pool
 
 __all__ = ["run_protocol"]
 
@@ -35,47 +36,54 @@ def _nominal(cache: Path) -> dict:
     return nominal
 
 
+def _choose(rows, cache, options, defaults, result, out) -> list:
+    """Thresholds and interval method chosen on the tuning rows (into ``result["tuning"]["choice"]``)."""
+    choice = choose_thresholds(rows, cache)
+    method = choose_interval_method(result["tuning"]["coverage"], defaults.interval)
+    chosen = {**choice["chosen"], "interval_method": method}
+    current = {k: options[k] for k in chosen}
+    result["tuning"]["choice"] = {"chosen": chosen, "best": choice["best"], "defaults": current,
+                                  "defaults_are_the_choice": chosen == current}  # fmt: skip
+    atomic_write(out / "threshold_grid.json", json_text(choice["grid"]))
+    same = " — the same." if chosen == current else " — different: the test set is run with the choice."
+    return ["", f"Chosen on the tuning suites: {chosen} (grid objective {choice['best']['objective']:.3f}); "
+            f"DiagnoseOptions defaults: {current}{same}", ""]  # fmt: skip
+
+
 def run_protocol(args) -> int:
     out = Path(args.out)
     cache = Path(args.cache) if args.cache else out / "cache"
     out.mkdir(parents=True, exist_ok=True)
     cache.mkdir(parents=True, exist_ok=True)
     t0, c0 = time.perf_counter(), time.process_time()
-    stages = ["tuning", "test"] if args.stage == "all" else [args.stage]
+    # the test stage needs the tuning stage's choice: the tuning suites are evaluated first (read back when stored)
+    stages = ["tuning"] if args.stage == "tuning" else ["tuning", "test"]
     nominal = _nominal(cache)
     print(f"nominal bicycle parameters (identified on clean runs, seed 99): {nominal}", flush=True)
     defaults = DiagnoseOptions()
     options = {f.name: getattr(defaults, f.name) for f in dataclasses.fields(defaults)}
     result = {"nominal": nominal, "fit_params": list(FIT), "options": options, "test_seed": args.test_seed}
     md = ["# Diagnosis validation protocol", ""]
-    for stage in stages:
-        specs = specs_for(stage, args.test_seed)
-        made = run_cases(generate_job, [(s, str(cache)) for s in specs], workers=args.workers,
-                         desc=f"{stage} suites")  # fmt: skip
-        result[f"{stage}_generation_cpu_seconds"] = sum(c for _, c in made)
-        if args.generate_only:
-            continue
-        rows = run_cases(diagnose_job, [(s, str(cache), nominal, FIT, options, args.redo) for s in specs],
-                         workers=args.workers, desc=f"{stage} diagnoses")  # fmt: skip
-        result[stage] = {"rows": rows, "coverage": coverage(rows)}
-        md.append(summary_tables(rows, f"{stage.capitalize()} set ({len(rows)} suites)"))
-        if stage == "tuning":
-            choice = choose_thresholds(rows, cache)
-            method = choose_interval_method(result[stage]["coverage"], defaults.interval)
-            chosen = {**choice["chosen"], "interval_method": method}
-            current = {k: options[k] for k in chosen}
-            result["tuning"]["choice"] = {"chosen": chosen, "best": choice["best"], "defaults": current,
-                                          "defaults_are_the_choice": chosen == current}  # fmt: skip
-            atomic_write(out / "threshold_grid.json", json.dumps(choice["grid"], indent=1))
-            md += ["", f"Chosen on the tuning suites: {chosen} (grid objective {choice['best']['objective']:.3f}); "
-                   f"DiagnoseOptions defaults: {current}" + (" — the same." if chosen == current else
-                                                             " — DIFFERENT: update the defaults and rerun."), ""]  # fmt: skip
-        cpu = sum(r["cpu_seconds"] for r in rows)
-        md.append(f"Diagnosis CPU time: {cpu:.0f} s for {len(rows)} suites (mean {cpu / len(rows):.1f} s, "
-                  f"max {max(r['cpu_seconds'] for r in rows):.1f} s).\n")  # fmt: skip
+    with Pool(args.workers, getattr(args, "scheduler", None)) as pool:  # the run's one pool
+        for stage in stages:
+            specs = specs_for(stage, args.test_seed)
+            made = pool.map(generate_job, [(s, str(cache)) for s in specs], desc=f"{stage} suites", unit="suite")
+            result[f"{stage}_generation_cpu_seconds"] = sum(c for _, c in made)
+            if args.generate_only:
+                continue
+            rows = pool.map(diagnose_job, [(s, str(cache), nominal, FIT, options, args.redo) for s in specs],
+                            desc=f"{stage} diagnoses", unit="suite")  # fmt: skip
+            result[stage] = {"rows": rows, "coverage": coverage(rows), "options": dict(options)}
+            md.append(summary_tables(rows, f"{stage.capitalize()} set ({len(rows)} suites)"))
+            if stage == "tuning":
+                md += _choose(rows, cache, options, defaults, result, out)
+                options = {**options, **result["tuning"]["choice"]["chosen"]}  # the test set is run with the choice
+            cpu = sum(r["cpu_seconds"] for r in rows)
+            md.append(f"Diagnosis CPU time: {cpu:.0f} s for {len(rows)} suites (mean {cpu / len(rows):.1f} s, "
+                      f"max {max(r['cpu_seconds'] for r in rows):.1f} s).\n")  # fmt: skip
     result["seconds"] = time.perf_counter() - t0
     result["cpu_seconds_main"] = time.process_time() - c0
-    atomic_write(out / "protocol.json", json.dumps(result, indent=1, default=float))
+    atomic_write(out / "protocol.json", json_text(result))
     atomic_write(out / "protocol.md", "\n".join(md))
     print("\n".join(md))
     return 0

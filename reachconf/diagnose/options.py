@@ -55,10 +55,10 @@ class DiagnoseOptions:
         An effect (or a second effect) is added only if its held-out gain is
         significant: paired z statistic of the held-out losses over clusters
         (cases) at least ``z_name``.
-    min_improvement : float, default 0.3
+    min_improvement : float, default 0.4
         ... and relevant: it lowers the held-out prediction loss of the model
         it is added to by at least this share.
-    z_separate : float, default 2.0
+    z_separate : float, default 1.5
         An alternative explanation is ruled out when the chosen one predicts the
         held-out cases better with a paired z of at least ``z_separate``;
         otherwise both are reported as indistinguishable.
@@ -96,8 +96,8 @@ class DiagnoseOptions:
     screen: int = 6
     pair_top: int = 4
     z_name: float = 3.0
-    min_improvement: float = 0.3
-    z_separate: float = 2.0
+    min_improvement: float = 0.4
+    z_separate: float = 1.5
     interval: float = 0.95
     interval_method: str = "spread"
     min_clusters: int = 8
