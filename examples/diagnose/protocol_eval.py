@@ -23,7 +23,7 @@ from reachconf.diagnose.options import INTERVAL_METHODS, DiagnoseOptions
 from reachconf.diagnose.select import Scored, decide
 from reachconf.io import atomic_write, load_suite, save_suite
 
-__all__ = ["load_or_make", "diagnose_job", "redecide", "choose_thresholds", "coverage", "summary_tables",
+__all__ = ["load_or_make", "diagnose_job", "stored_row", "interleaved", "suite_job", "TUNING_RUN_THRESHOLDS", "redecide", "choose_thresholds", "coverage", "summary_tables",
            "GRID"]  # fmt: skip
 
 #: thresholds searched on the tuning suites
@@ -51,6 +51,38 @@ def generate_job(job):
     return spec.name, time.process_time() - t0
 
 
+#: thresholds the tuning suites are diagnosed with before the search (the search re-decides their stored held-out
+#: losses with every grid point; these set only the verdicts shown in the tuning table)
+TUNING_RUN_THRESHOLDS = {"z_name": 3.0, "min_improvement": 0.3, "z_separate": 2.0}
+
+
+def _key(spec, nominal, fit, options) -> str:
+    return json.dumps({"spec": spec.to_dict(), "nominal": nominal, "fit": list(fit), "options": options},
+                      sort_keys=True)  # fmt: skip
+
+
+def stored_row(spec, cache, nominal, fit, options):
+    """The stored diagnosis of ``spec`` made with these settings, or None."""
+    res = Path(cache) / "results"
+    path, npz = res / f"{spec.name}.json", res / f"{spec.name}.npz"
+    if path.exists() and npz.exists():
+        row = json.loads(path.read_text())
+        if row.get("key") == _key(spec, nominal, fit, options):
+            return row
+    return None
+
+
+def interleaved(specs) -> list:
+    """``specs`` round-robin over their categories, so that any finished prefix samples every category."""
+    by = {}
+    for s in specs:
+        by.setdefault(s.category, []).append(s)
+    out = []
+    for i in range(max(len(v) for v in by.values())):
+        out += [v[i] for v in by.values() if i < len(v)]
+    return out
+
+
 def diagnose_job(job) -> dict:
     """Diagnose one protocol suite (or read the stored result); the row of the protocol tables."""
     import reachconf as rc
@@ -59,12 +91,10 @@ def diagnose_job(job) -> dict:
     spec, cache, nominal, fit, options, redo = job
     res = Path(cache) / "results"
     path, npz = res / f"{spec.name}.json", res / f"{spec.name}.npz"
-    key = json.dumps({"spec": spec.to_dict(), "nominal": nominal, "fit": list(fit), "options": options},
-                     sort_keys=True)  # fmt: skip
-    if path.exists() and npz.exists() and not redo:
-        row = json.loads(path.read_text())
-        if row.get("key") == key:
-            return row
+    key = _key(spec, nominal, fit, options)
+    row = None if redo else stored_row(spec, cache, nominal, fit, options)
+    if row is not None:
+        return row
     suite = load_or_make(spec, cache)
     report = rc.diagnose(bicycle(**nominal), suite, fit_params=fit, options=DiagnoseOptions(**options),
                          progress=False)  # fmt: skip
@@ -87,6 +117,11 @@ def diagnose_job(job) -> dict:
     row["models"] = [{"label": m["label"], "parts": m["parts"]} for m in sc["models"]]
     atomic_write(path, json.dumps(row, indent=1, default=float))
     return row
+
+
+def suite_job(job) -> dict:
+    """Make (or load) one suite and diagnose it (or read the stored result): :func:`diagnose_job`."""
+    return diagnose_job(job)
 
 
 def redecide(row, cache, **thresholds) -> dict:

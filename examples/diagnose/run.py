@@ -106,6 +106,9 @@ def main(argv=None) -> int:
     ap.add_argument("--stage", choices=("tuning", "test", "all"), default="all", help="protocol: which suites")
     ap.add_argument("--test-seed", type=int, default=2, help="protocol: seed of the test set (another seed: another set)")
     ap.add_argument("--generate-only", action="store_true", help="protocol: only generate the suites")
+    ap.add_argument("--available", action="store_true",
+                    help="protocol: only tabulate the stored results (e.g. of a run stopped at a deadline)")
+    ap.add_argument("--no-tubes", action="store_true", help="protocol: test set without the before/after reach tubes")
     ap.add_argument("--redo", action="store_true", help="protocol: diagnose again even if a stored result matches")
     args = ap.parse_args(argv)
     if args.protocol:
