@@ -44,7 +44,7 @@ def load_vehicle_example():
     return mod
 
 
-def table6_problem(vehicle, folder, cases):
+def table6_problem(vehicle, folder, cases, step2_decimate=1):
     """The example's Table 6 problem: closed-loop model, suite, V and synthesis options."""
     from reachconf.conformance import SynthesisOptions
 
@@ -57,7 +57,7 @@ def table6_problem(vehicle, folder, cases):
     act = vehicle.fit_actuators(suite)
     model = vehicle.bicycle_closed_loop_actuated(**params, **act["params"])
     cl_suite = suite.map(lambda c: c.select(vehicle.REF, model.output_names))
-    opts = SynthesisOptions(alpha_iterations=8, merge_iterations=6, alpha_max=4.0, step2_decimate=4,
+    opts = SynthesisOptions(alpha_iterations=8, merge_iterations=6, alpha_max=4.0, step2_decimate=step2_decimate,
                             reach=vehicle.REACH_TABLE6_FAST, reach_fallback=vehicle.REACH_TABLE6)  # fmt: skip
     return model, cl_suite, vehicle.box(vehicle.V_TABLE6), opts
 
@@ -135,11 +135,13 @@ def main():
     ap.add_argument("--skip-dask", action="store_true")
     ap.add_argument("--pareto-group", default="LC_2")
     ap.add_argument("--pareto-iterations", type=int, default=3)
+    ap.add_argument("--step2-decimate", type=int, default=1, help="synthesis step 2 on every k-th sample "
+                    "(1: the example's Table 6 options, at the recordings' 100 Hz)")  # fmt: skip
     ap.add_argument("--skip-fresh", action="store_true", help="skip the first case on a fresh worker")
     args = ap.parse_args()
     os.environ.setdefault("REACHCONF_PROGRESS", "0")
     vehicle = load_vehicle_example()
-    model, suite, V, opts = table6_problem(vehicle, args.campaign, args.cases)
+    model, suite, V, opts = table6_problem(vehicle, args.campaign, args.cases, args.step2_decimate)
     print(f"{len(suite)} cases, groups {list(suite.groups())}; load average {os.getloadavg()[0]:.1f} on "
           f"{os.cpu_count()} cores", flush=True)
 

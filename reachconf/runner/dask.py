@@ -22,7 +22,6 @@ import threading
 import time
 
 from distributed import Client, KilledWorker, WorkerPlugin
-from distributed import wait as dask_wait
 
 from reachconf.errors import OptionsError
 from reachconf.runner.address import check_scheduler
@@ -32,6 +31,8 @@ __all__ = ["DaskBackend", "WorkerSetup", "connect"]
 
 #: seconds between two questions to the scheduler about its number of workers
 COUNT_INTERVAL = 1.0
+#: longest pause between two looks at the pending tasks' states while waiting
+POLL_NAP = 0.02
 
 
 def connect(address: str, timeout: float | None = None) -> Client:
@@ -136,10 +137,10 @@ class DaskBackend:
             if self._empty_since is None:
                 self._empty_since = now
                 self._pool.note(f"no Dask worker left on {self.address}; waiting up to {timeout:g} s for one to join "
-                                "(worker_timeout, --worker-timeout, REACHCONF_WORKER_TIMEOUT)")  # fmt: skip
+                                "(worker_timeout or REACHCONF_WORKER_TIMEOUT)")  # fmt: skip
             elif now - self._empty_since > timeout:
                 raise WorkersLost(f"no Dask worker on {self.address} for {timeout:g} s; giving up (the finished "
-                                  "results are kept; set the wait with worker_timeout, --worker-timeout or "
+                                  "results are kept; set the wait with worker_timeout or "
                                   "REACHCONF_WORKER_TIMEOUT)")  # fmt: skip
 
     def _report(self, msg):
@@ -160,14 +161,18 @@ class DaskBackend:
 
     def wait(self, pending, timeout):
         """The pending tasks that finished within ``timeout``."""
-        futures = {t.inner.key: t for t in pending}
-        try:
-            done, _ = dask_wait([t.inner for t in pending], timeout=timeout, return_when="FIRST_COMPLETED")
-        except TimeoutError:
-            return []
+        # polled, not distributed.wait: several threads (the merge's groups, the Pareto orders) wait at once, and
+        # distributed.wait from several threads made the client's event loop fail ("deque mutated during iteration")
+        deadline, nap = time.monotonic() + timeout, 0.002
+        while True:
+            done = [t for t in pending if t.inner.done()]
+            if done or time.monotonic() >= deadline:
+                break
+            time.sleep(nap)
+            nap = min(2 * nap, POLL_NAP)
         finished = []
-        for fut in done:
-            task = futures[fut.key]
+        for task in done:
+            fut = task.inner
             self._keys.pop(fut.key, None)
             if fut.status == "cancelled":
                 raise Stopped("the task was cancelled")
