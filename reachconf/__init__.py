@@ -49,6 +49,7 @@ _LAZY = {
     "reach_run": "reachconf.reach",
     "reach_streamed": "reachconf.reach_stream",
     "ReachOptions": "reachconf.reach_options",
+    "AdaptiveReach": "reachconf.reach_options",
     "ReachTube": "reachconf.tube",
     "models": "reachconf.models",
     "load_suite": "reachconf.io.files",

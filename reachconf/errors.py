@@ -45,13 +45,18 @@ class ReachError(ReachconfError, RuntimeError):
         Name of the state whose error bound exploded.
     term : str or None
         Which error term exploded (e.g. ``"lagrange"``).
+    tried : dict or None
+        What an adaptive reach tried before it gave up (``smallest_step``,
+        ``highest_tensor_order``, ``max_order``, ``splits``, ``max_splits``,
+        ``steps``), else None.
     """
 
-    def __init__(self, message, *, time=None, state=None, term=None):
+    def __init__(self, message, *, time=None, state=None, term=None, tried=None):
         super().__init__(message)
         self.time = time
         self.state = state
         self.term = term
+        self.tried = tried
 
 
 class DataError(ReachconfError, ValueError):

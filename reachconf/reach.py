@@ -27,7 +27,8 @@ from reachconf.budget import check_memory, progress_bar, tube_bytes_per_step
 from reachconf.checks import check_options
 from reachconf.errors import OptionsError, ReachError
 from reachconf.model.core import require_model
-from reachconf.reach_options import ReachOptions
+from reachconf.reach_adaptive import run_adaptive
+from reachconf.reach_options import AdaptiveReach, ReachOptions
 from reachconf.sets.convert import as_zonotope
 from reachconf.sets.core import Zonotope
 from reachconf.tube import ReachTube
@@ -290,7 +291,8 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None,
 
     Returns
     -------
-    ReachRun
+    ReachRun or AdaptiveRun
+        (:class:`reachconf.reach_adaptive.AdaptiveRun` with ``algorithm="adaptive"``)
 
     Raises
     ------
@@ -309,6 +311,10 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None,
     Wz = as_zonotope(W, q, "W")
     scalar = np.ndim(times) == 0
     samples = _sample_times(times)
+    if isinstance(options.alg, AdaptiveReach):
+        if stream is not None:
+            raise OptionsError("a streamed reach needs a fixed step: algorithm='lin' or 'poly', not 'adaptive'")
+        return _adaptive(model, Z0, Wz, samples, scalar, inputs, options, monitor)
     dts, t_start, sample_of_step, step_offsets = _step_grid(samples, options.time_step, scalar)
     U = _input_table(model, inputs, samples, t_start, sample_of_step, per_step=scalar)
     if scalar:  # every step end is a sample time
@@ -454,6 +460,24 @@ def _reach_streamed(model, options, Z0, Wz, samples, step_offsets, t_start, dts,
                      monitor is not None)  # fmt: skip
 
 
+def _adaptive(model, Z0, Wz, samples, scalar, inputs, options, monitor):
+    """``algorithm="adaptive"``: inputs per sample interval, then :func:`reachconf.reach_adaptive.run_adaptive`."""
+    horizon = float(samples[-1] - samples[0])
+    if scalar and model.m and callable(inputs):  # a callable input is sampled on the default grid
+        grid = options.time_step if options.time_step is not None else horizon / 100.0
+        samples = np.linspace(samples[0], samples[-1], max(1, int(np.ceil(horizon / grid - 1e-9))) + 1)
+    samples = np.ascontiguousarray(samples, dtype=float)
+    K = samples.size
+    U = _input_table(model, inputs, samples, samples[:-1], np.arange(K - 1), per_step=False)
+    bar = progress_bar(options.progress, K - 1, f"reach {model.name}", "sample", 2000, terminal_only=True)
+    try:
+        return run_adaptive(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=monitor, progress=bar,
+                            stopped=ReachStopped)  # fmt: skip
+    finally:
+        if bar is not None:
+            bar.close()
+
+
 def _reach_error(model, options, status, step, bad_state, bad_term, t_start, dts, err, comp, splits):
     t = float(t_start[step])
     where = f"at t = {t:.6g} s (step {step}, dt = {dts[step]:.3g} s)"
@@ -469,7 +493,7 @@ def _reach_error(model, options, status, step, bad_state, bad_term, t_start, dts
     hints = [f"a smaller time_step (now {dts[step]:.3g})"]
     if options.effective_tensor_order == 2:
         hints.append("tensor_order=3 (or algorithm='poly')")
-    hints.append(f"a larger max_splits (used {splits} of {options.max_splits})")
+    hints.append(f"a larger max_splits (used {splits} of {options.effective_max_splits})")
     hints.append("splitting the initial set, or a smaller initial set / disturbance set W")
     msg = (f"reachable set of model {model.name!r} exploded {where}{detail}: {_STATUS.get(status, '')}{size}. "
            f"Try {', '.join(hints)}.")

@@ -32,7 +32,7 @@ from reachconf.registry import NamedTypes
 from reachconf.sets.reduction import ReductionMethod, reduction_method
 
 __all__ = ["ReachOptions", "ReachAlgorithm", "ConservativeLinearization", "ConservativePolynomialization",
-           "ALGORITHM_TYPES", "reach_algorithm", "register_algorithm", "SPLIT_METHODS", "MAX_ORDER",
+           "AdaptiveReach", "ALGORITHM_TYPES", "reach_algorithm", "register_algorithm", "SPLIT_METHODS", "MAX_ORDER",
            "REMAINDERS"]  # fmt: skip
 
 #: how a set is split when its abstraction error cannot be bounded
@@ -42,6 +42,8 @@ SPLIT_METHODS = ("generator", "box")
 MAX_ORDER = 1000
 #: how the Lagrange remainders are bounded (:mod:`reachconf.model.codegen`)
 REMAINDERS = ("taylor", "tensor")
+#: default ``max_splits`` of the adaptive algorithm
+ADAPTIVE_MAX_SPLITS = 64
 
 
 class ReachAlgorithm:
@@ -113,6 +115,72 @@ class ConservativePolynomialization(ReachAlgorithm):
     default_tensor_order: ClassVar[int] = 3
 
 
+@dataclass(frozen=True)
+class AdaptiveReach(ReachAlgorithm):
+    """Conservative linearisation with its parameters chosen per step (shorthand ``"adaptive"``).
+
+    The time step, the zonotope, intermediate and error orders (by an
+    error-bounded reduction), the tensor order (2 or 3) and the Taylor terms
+    are chosen step by step from the abstraction and reduction errors against
+    an error budget, and the set is split when its error over the set itself
+    is over budget and halving it lowers that error
+    (:mod:`reachconf.reach_adaptive`, :mod:`reachconf_kernels.adaptive`).
+    ``ReachOptions.time_step`` is then the largest step (``None``: a tenth of
+    the horizon), ``tensor_order`` fixes the tensor order if given, and
+    ``intermediate_order``/``error_order`` are the orders of the intermediate
+    sets; ``zonotope_order`` is not used (``max_order`` caps the order).  What
+    was chosen is in the tube's :attr:`~reachconf.tube.ReachTube.log`.
+
+    Parameters
+    ----------
+    error_budget : float, default 0.7
+        The abstraction error may widen the set, relative to its size
+        (averaged over the states), by at most ``error_budget / horizon`` per
+        unit time (the horizon is the span of the sample times).  Smaller:
+        tighter sets, smaller steps, more splits.
+    max_order : float, default 50
+        Largest zonotope order (generators / dimension) the error-bounded
+        reduction may keep.
+    max_steps : int, default 100000
+        Most accepted steps (over all pieces) before the analysis gives up
+        with a :class:`~reachconf.errors.ReachError`; the kept sets may also
+        use at most a share of the available memory
+        (:data:`reachconf.reach_adaptive.MEMORY_SHARE`).  Both bound what an
+        exploding set can allocate.
+
+    References
+    ----------
+    M. Wetzlinger, A. Kochdumper, S. Bak, M. Althoff, "Adaptive parameter
+    tuning for reachability analysis of nonlinear systems", HSCC 2021
+    (CORA's ``lin-adaptive``; the step-size control and the splitting here
+    are simpler and our own).
+    """
+
+    name: ClassVar[str] = "adaptive"
+    kernel_code: ClassVar[int | None] = None
+    tensor_orders: ClassVar[tuple] = (2, 3)
+    default_tensor_order: ClassVar[int] = 2
+    error_budget: float = 0.7
+    max_order: float = 50.0
+    max_steps: int = 100_000
+
+    def validate(self, options: "ReachOptions") -> None:
+        """Check the budget and that a fixed tensor order is 2 or 3."""
+        if options.tensor_order is not None:
+            super().validate(options)
+        b = self.error_budget
+        if not (isinstance(b, (int, float, np.number)) and 0 < b < math.inf):
+            raise OptionsError(f"AdaptiveReach.error_budget must be a positive number, got {b!r}")
+        m = self.max_order
+        if not (isinstance(m, (int, float, np.number)) and 1 <= m < math.inf):
+            raise OptionsError(f"AdaptiveReach.max_order must be a number >= 1, got {m!r}")
+        if m > MAX_ORDER:
+            raise OptionsError(f"AdaptiveReach.max_order must be at most {MAX_ORDER}, got {m!r}")
+        k = self.max_steps
+        if not (isinstance(k, (int, np.integer)) and not isinstance(k, bool) and k >= 1):
+            raise OptionsError(f"AdaptiveReach.max_steps must be an integer >= 1, got {k!r}")
+
+
 #: name -> algorithm type (``ALGORITHM_TYPES.register`` adds one)
 ALGORITHM_TYPES = NamedTypes(ReachAlgorithm, "reach algorithm")
 
@@ -127,7 +195,7 @@ def reach_algorithm(value) -> ReachAlgorithm:
     return ALGORITHM_TYPES.resolve(value)
 
 
-for _cls in (ConservativeLinearization, ConservativePolynomialization):
+for _cls in (ConservativeLinearization, ConservativePolynomialization, AdaptiveReach):
     register_algorithm(_cls)
 
 
@@ -138,17 +206,20 @@ class ReachOptions:
     Parameters
     ----------
     algorithm : str or ReachAlgorithm, default "lin"
-        :class:`ConservativeLinearization` (``"lin"``, Althoff 2008) or
-        :class:`ConservativePolynomialization` (``"poly"``, Althoff 2013);
-        ``alg`` is it as an instance.
+        :class:`ConservativeLinearization` (``"lin"``, Althoff 2008),
+        :class:`ConservativePolynomialization` (``"poly"``, Althoff 2013) or
+        :class:`AdaptiveReach` (``"adaptive"``, Wetzlinger et al. 2021: no
+        fixed step, orders or tensor order); ``alg`` is it as an instance.
     time_step : float or None, default None
-        Largest integration step.  ``None``: one hundredth of the horizon,
-        capped by the spacing of the sample times.
+        "lin"/"poly": the integration step; ``None``: one hundredth of the
+        horizon, capped by the spacing of the sample times.  "adaptive": the
+        largest step (``None``: a tenth of the horizon).
     taylor_terms : int, default 4
         Taylor terms of the matrix exponential (``r``); the remainder is bounded.
     zonotope_order : float, default 20
         Order (generators / dimension) the reachable sets are reduced to;
-        at most :data:`MAX_ORDER` (1000).
+        at most :data:`MAX_ORDER` (1000).  Not used by "adaptive" (see
+        :class:`AdaptiveReach`).
     intermediate_order : float, default 20
         Order of intermediate sets (time-interval set before the error loop,
         error sets); at most 1000.
@@ -162,8 +233,10 @@ class ReachOptions:
         Order-reduction method: :class:`~reachconf.sets.reduction.Girard`
         (``"girard"``, Girard 2005) or :class:`~reachconf.sets.reduction.PCA`
         (``"pca"``, Kopetzki 2017); ``reduction_method`` is it as an instance.
-    max_splits : int, default 8
-        How many times a set may be split when its error cannot be bounded.
+    max_splits : int or None, default None
+        How many times a set may be split (``None``: 8 for "lin"/"poly",
+        :data:`ADAPTIVE_MAX_SPLITS` for "adaptive", which also splits when
+        that is cheaper than smaller steps).
     split_method : {"generator", "box"}, default "generator"
         "generator" halves the zonotope exactly along its generator of largest
         normalised length; "box" halves the interval hull along its widest
@@ -193,7 +266,7 @@ class ReachOptions:
     error_order: float = 5.0
     tensor_order: int | None = None
     reduction: str | ReductionMethod = "girard"
-    max_splits: int = 8
+    max_splits: int | None = None
     split_method: str = "generator"
     max_error: float | tuple = math.inf
     max_error_iterations: int = 25
@@ -224,7 +297,7 @@ class ReachOptions:
             raise OptionsError(f"ReachOptions.reduction: {reduction.name!r} is not available in the compiled reach loop")
         if self.split_method not in SPLIT_METHODS:
             raise OptionsError(f"ReachOptions.split_method must be one of {SPLIT_METHODS}, got {self.split_method!r}")
-        if not (isinstance(self.max_splits, (int, np.integer)) and self.max_splits >= 0):
+        if self.max_splits is not None and not (isinstance(self.max_splits, (int, np.integer)) and self.max_splits >= 0):
             raise OptionsError(f"ReachOptions.max_splits must be a non-negative integer, got {self.max_splits!r}")
         if not (isinstance(self.max_error_iterations, (int, np.integer)) and self.max_error_iterations >= 2):
             raise OptionsError("ReachOptions.max_error_iterations must be an integer >= 2")
@@ -245,6 +318,13 @@ class ReachOptions:
     def reduction_method(self) -> ReductionMethod:
         """The order-reduction method as an instance (``reduction`` may be its name)."""
         return reduction_method(self.reduction)
+
+    @property
+    def effective_max_splits(self) -> int:
+        """``max_splits``, or its default for the algorithm when it is None."""
+        if self.max_splits is None:
+            return ADAPTIVE_MAX_SPLITS if isinstance(self.alg, AdaptiveReach) else 8
+        return int(self.max_splits)
 
     @property
     def effective_tensor_order(self) -> int:

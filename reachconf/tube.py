@@ -13,9 +13,11 @@ from reachconf.errors import DataError, ReachError, SetError
 from reachconf.io.atomic import atomic_write
 from reachconf.model.outputs import output_enclosure
 from reachconf.plot import plot_tube
+from reachconf.reach_log import ReachLog
 from reachconf.sets.convert import as_zonotope
 from reachconf.sets.core import Interval, Zonotope
 from reachconf.sets.union import SetUnion
+from reachconf.tube_pieces import PieceSets, piece_layout
 
 __all__ = ["ReachTube", "SetUnion", "Containment"]
 
@@ -74,15 +76,21 @@ class ReachTube:
         1, or for a streamed reach (:func:`reachconf.reach_stream.reach_streamed`)
         the spacing of the steps whose sets were kept; ``bounds()`` still covers
         every step, ``at``/``contains`` only the kept times.
+    log : ReachLog or None
+        With ``algorithm="adaptive"``: the steps, orders and splits it chose
+        (:meth:`summary` prints them).
     """
 
     def __init__(self, times, time_point_sets, time_intervals, time_interval_sets, state_names,
                  model=None, inputs=None, splits=0, seconds=0.0, meta=None, keep_every=1, step_bounds=None,
-                 all_times=None):  # fmt: skip
+                 all_times=None, log=None):  # fmt: skip
         self.times = np.asarray(times, dtype=float)
-        self.time_point_sets = list(time_point_sets)
+        # an adaptive run's sets are built when first used (PieceSets)
+        lazy = isinstance(time_point_sets, PieceSets)
+        self.time_point_sets = time_point_sets if lazy else list(time_point_sets)
         self.time_intervals = np.asarray(time_intervals, dtype=float).reshape(-1, 2)
-        self.time_interval_sets = list(time_interval_sets)
+        lazy = isinstance(time_interval_sets, PieceSets)
+        self.time_interval_sets = time_interval_sets if lazy else list(time_interval_sets)
         self.state_names = tuple(state_names)
         self.model = model
         self.inputs = None if inputs is None else np.asarray(inputs, dtype=float)
@@ -92,11 +100,14 @@ class ReachTube:
         self.keep_every = int(keep_every)
         self.step_bounds = None if step_bounds is None else np.asarray(step_bounds, dtype=float)
         self.all_times = self.times if all_times is None else np.asarray(all_times, dtype=float)
+        self.log = log
 
     # ----------------------------------------------------------- building
     @classmethod
     def from_run(cls, run, model) -> "ReachTube":
         """The tube of a finished :func:`reachconf.reach.reach_run` (a :class:`~reachconf.reach.ReachRun`)."""
+        if getattr(run, "log", None) is not None:
+            return cls.from_pieces(run, model)
         return cls.from_branches(model=model, samples=run.samples, step_offsets=run.step_offsets,
                                  t_start=run.t_start, dts=run.dts, X0=run.X0, branches=run.branches,
                                  options=run.options, W=run.W, splits=run.splits, seconds=run.seconds)  # fmt: skip
@@ -123,6 +134,51 @@ class ReachTube:
         meta = {"model": model.name, "options": {k: _plain(v) for k, v in options.__dict__.items()}}
         return cls(samples, tp_sets, intervals, ti_sets, model.state_names, model=model,
                    splits=splits, seconds=seconds, meta=meta)  # fmt: skip
+
+    @classmethod
+    def from_pieces(cls, run, model) -> "ReachTube":
+        """The tube of an adaptive run (:class:`reachconf.reach_adaptive.AdaptiveRun`): branches with own steps.
+
+        The layout is :func:`reachconf.tube_pieces.piece_layout`; sets are built
+        when first used, the bounds directly from the arrays.
+        """
+        from reachconf_kernels.adaptive import piece_hulls
+
+        lay = piece_layout(run.samples, run.scalar, run.rec[:, 0], run.branches)
+        P = run.rec.shape[0]
+        off_tp = np.concatenate([[0], np.cumsum(run.ng_tp)])
+        off_ti = np.concatenate([[0], np.cumsum(run.ng_ti)])
+
+        def piece(p):
+            if p < P:
+                return _zono(run.tp_c[p], run.tp_G[:, off_tp[p] :], run.ng_tp[p])
+            p -= P
+            return _zono(run.ti_c[p], run.ti_G[:, off_ti[p] :], run.ng_ti[p])
+
+        def make(ids):
+            return piece(int(ids[0])) if ids.size == 1 else SetUnion([piece(int(p)) for p in ids])
+
+        tp = PieceSets(np.concatenate([[0], lay.tp_indptr + 1]), np.concatenate([[-1], lay.tp_indices]),
+                       lambda ids: run.X0 if ids[0] < 0 else make(ids))  # fmt: skip
+        ti = PieceSets(lay.ti_indptr, lay.ti_indices + P, make)
+        meta = {"model": model.name, "options": {k: _plain(v) for k, v in run.options.__dict__.items()}}
+        tube = cls(lay.times, tp, lay.intervals, ti, model.state_names, model=model, splits=run.splits,
+                   seconds=run.seconds, meta=meta, log=run.log)  # fmt: skip
+        lo, hi = piece_hulls(run.ti_c, np.ascontiguousarray(run.ti_G), run.ng_ti)
+        start = lay.ti_indptr[:-1]
+        tube.step_bounds = np.stack([np.minimum.reduceat(lo[lay.ti_indices], start, axis=0),
+                                 np.maximum.reduceat(hi[lay.ti_indices], start, axis=0)], axis=1)  # fmt: skip
+        return tube
+
+    def summary(self) -> str:
+        """What the reach chose (steps, orders, splits over time, with "adaptive") and the tube's extent."""
+        lines = [repr(self)]
+        if self.log is not None:
+            lines.append(self.log.summary())
+        hull = self.interval_hull()
+        lines.append("  hull: " + ", ".join(f"{nm} in [{a:.4g}, {b:.4g}]"
+                                            for nm, a, b in zip(self.state_names, hull.lo, hull.hi)))  # fmt: skip
+        return "\n".join(lines)
 
     # ------------------------------------------------------------ queries
     def __len__(self):
@@ -307,6 +363,8 @@ class ReachTube:
             arrays["all_times"] = self.all_times
         arrays["meta"] = np.array(json.dumps({**self.meta, "splits": self.splits, "seconds": self.seconds,
                                               "keep_every": self.keep_every}))  # fmt: skip
+        if self.log is not None:
+            arrays.update(self.log.to_arrays())
         buf = io.BytesIO()
         np.savez_compressed(buf, **arrays)
         return atomic_write(path, buf.getvalue())
@@ -328,16 +386,23 @@ class ReachTube:
                 sets[prefix] = [p[0] if len(p) == 1 else SetUnion(p) for p in pieces]
             meta = json.loads(str(data["meta"]))
             extra = {k: data[k] for k in ("step_bounds", "all_times") if k in data.files}
+            log = ReachLog.from_arrays(data)
         except (KeyError, ValueError, OSError) as exc:
             raise DataError(f"{path}: not a reachconf tube file ({exc})") from None
         return cls(data["times"], sets["tp"], data["time_intervals"], sets["ti"],
                    [str(s) for s in data["state_names"]], splits=meta.pop("splits", 0),
                    seconds=meta.pop("seconds", 0.0), keep_every=meta.pop("keep_every", 1), meta=meta,
-                   **extra)  # fmt: skip
+                   log=log, **extra)  # fmt: skip
 
     def __repr__(self):
+        chosen = ""
+        if self.log is not None and self.log.steps:
+            lg = self.log
+            chosen = (f", adaptive: dt {lg.dt.min():.3g}..{lg.dt.max():.3g} s, tensor order "
+                      f"{'/'.join(str(k) for k in sorted(set(int(v) for v in lg.tensor_order)))}, zonotope order "
+                      f"{lg.zonotope_order.min():.3g}..{lg.zonotope_order.max():.3g}")  # fmt: skip
         return (f"ReachTube({len(self.times)} sample times from {self.times[0]:g} to {self.times[-1]:g} s, "
-                f"{len(self.time_interval_sets)} steps, states {self.state_names}, splits={self.splits})")
+                f"{len(self.time_interval_sets)} steps, states {self.state_names}, splits={self.splits}{chosen})")
 
 
 def _plain(v):

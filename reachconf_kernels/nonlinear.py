@@ -36,6 +36,7 @@ import numpy as np
 from numba import njit, types
 
 from reachconf_kernels import zonotope as Z
+from reachconf_kernels.reduce_adaptive import reduce_adaptive
 from reachconf_kernels.signatures import (
     FN_IV_REMAINDER,
     FN_POINT_MAT,
@@ -78,6 +79,14 @@ def _reduce(c, G, order, method):
 
 
 @njit(cache=True)
+def _reduce_tol(c, G, order, method, tol, keep=0):
+    """Fixed-order reduction (``tol <= 0``) or error-bounded reduction capped at ``order`` (first ``keep`` kept)."""
+    if tol > 0.0:
+        return reduce_adaptive(c, G, tol, order, keep)
+    return _reduce(c, G, order, method)
+
+
+@njit(cache=True)
 def _add_box(c, G, rad):
     """Zonotope plus the box ``[-rad, rad]`` (zero radii add no generator)."""
     n = c.shape[0]
@@ -97,7 +106,7 @@ def _add_box(c, G, rad):
 
 
 @njit(cache=True)
-def _abs_bound(c, G):
+def abs_bound(c, G):
     """Per-axis bound of ``|x|`` over the zonotope (no rounding)."""
     out = np.abs(c).copy()
     for j in range(G.shape[1]):
@@ -107,7 +116,8 @@ def _abs_bound(c, G):
 
 
 @njit(cache=True)
-def _radius(G):
+def row_radius(G):
+    """Per-row sum of ``|G|`` (the interval-hull radius of a zonotope with generators ``G``)."""
     out = np.zeros(G.shape[0])
     for j in range(G.shape[1]):
         for i in range(G.shape[0]):
@@ -132,7 +142,7 @@ def _all_finite(a):
 
 
 @njit(cache=True)
-def _quadratic_error(cz, Gz, Hp, n, idx):
+def quadratic_error(cz, Gz, Hp, n, idx):
     """``1/2 quad_map(Z, H(p))`` restricted to the coordinates ``idx`` of z."""
     k = idx.shape[0]
     Q = np.empty((n, k, k))
@@ -163,7 +173,7 @@ def _quad_maps_poly(cs, Gs, cd, Gd, Hp, n, idx):
 
 
 @njit(cache=True)
-def _extend_w(c, G, WG, n, q, with_w):
+def extend_with_disturbance(c, G, WG, n, q, with_w):
     """Embed a state zonotope into (x, w) coordinates (w part = W - wc or 0)."""
     gw = WG.shape[1] if with_w else 0
     cz = np.zeros(n + q)
@@ -187,7 +197,7 @@ def nonlinear_step(
     c, G, u, wc, WG, p, dt, r,
     f, jac, hess, lagrange_iv,
     algorithm, tensor_order, zono_order, inter_order, err_order, reduce_method,
-    max_iter, max_error, err_init, rel_round,
+    max_iter, max_error, err_init, rel_round, red_tol, keep, info,
 ):  # fmt: skip
     """One step from the time-point set ``Z(c, G)`` over ``[t, t + dt]``.
 
@@ -197,6 +207,9 @@ def nonlinear_step(
     wc, WG : disturbance zonotope (centre, generators); p : parameters;
     algorithm : 0 = 'lin', 1 = 'poly' (needs tensor_order 3);
     err_init : (n,) warm start of the abstraction error.
+    red_tol, keep : ``red_tol > 0``: the time-point (time-interval) set is reduced error-bounded
+        (``reduce_adaptive``, tolerance ``red_tol`` (x5), at most ``zono_order``, first ``keep`` kept).
+    info : int64 (4,) out: error iterations, generators into ``quad_map``, of the tp and ti sets.
 
     Returns
     -------
@@ -263,10 +276,10 @@ def nonlinear_step(
         hess(z, p, Hp)
     if algorithm == 1:
         c_s, G_s = _reduce(cd, G, err_order, reduce_method)
-        cs, Gs = _extend_w(c_s, G_s, WG, n, q, False)
-        stat_c, stat_G = _quadratic_error(cs, Gs, Hp, n, idx)
+        cs, Gs = extend_with_disturbance(c_s, G_s, WG, n, q, False)
+        stat_c, stat_G = quadratic_error(cs, Gs, Hp, n, idx)
         stat_c, stat_G = _reduce(stat_c, stat_G, inter_order, reduce_method)
-        stat_abs = _abs_bound(stat_c, stat_G)
+        stat_abs = abs_bound(stat_c, stat_G)
         # increments x(t) - x(t_k) of the linear part
         D_c, D_G, D_rad = interval_matrix_times_zonotope(eAt - np.eye(n), E, cd, G)
         D_c, D_G = _add_box(D_c + Pu_c, D_G, D_rad + Pu_rad)
@@ -276,7 +289,7 @@ def nonlinear_step(
     s_lo, s_hi = Z.interval_hull(cd, G)
     d_lo, d_hi = Z.interval_hull(cdiff, Gdiff)
     # -- box of z around p for the Lagrange remainders
-    w_rad = _radius(WG)
+    w_rad = row_radius(WG)
     zlo = np.empty(nz)
     zhi = np.empty(nz)
     zlo[n : n + m] = u
@@ -312,7 +325,10 @@ def nonlinear_step(
     status = NO_CONVERGENCE
     bad_state = -1
     bad_term = TERM_LAGRANGE2
+    info[0] = 0
+    info[1] = 0
     for it in range(max_iter):
+        info[0] = it + 1
         applied = err * 1.1
         rad_v = Tabs @ applied
         if algorithm == 1:
@@ -342,15 +358,16 @@ def nonlinear_step(
             if algorithm == 1:
                 c_d, G_d = _add_box(cdiff, Gdiff, rad_v)
                 c_d, G_d = _reduce(c_d, G_d, err_order, reduce_method)
-                czd, Gzd = _extend_w(c_d, G_d, WG, n, q, True)
+                czd, Gzd = extend_with_disturbance(c_d, G_d, WG, n, q, True)
                 qc, qG = _quad_maps_poly(cs, Gs, czd, Gzd, Hp, n, idx)
             else:
                 c_r, G_r = _add_box(cti_lin, Gti_lin, rad_v)
                 c_r, G_r = _reduce(c_r, G_r, err_order, reduce_method)
-                czr, Gzr = _extend_w(c_r, G_r, WG, n, q, True)
-                qc, qG = _quadratic_error(czr, Gzr, Hp, n, idx)
+                info[1] = G_r.shape[1]
+                czr, Gzr = extend_with_disturbance(c_r, G_r, WG, n, q, True)
+                qc, qG = quadratic_error(czr, Gzr, Hp, n, idx)
             err_c, err_G = _reduce(qc, qG, inter_order, reduce_method)
-            term_q = _abs_bound(err_c, err_G)
+            term_q = abs_bound(err_c, err_G)
             true_err = term_q + cubic + stat_abs
         if not _all_finite(true_err):
             status = NOT_FINITE
@@ -390,10 +407,12 @@ def nonlinear_step(
     cti = cti_lin + px + Pc
     Gti = _hcat(Gti_lin, PG)
     # rounding allowance of the float zonotope arithmetic
-    ctp, Gtp = _add_box(ctp, Gtp, rel_round * (_abs_bound(ctp, Gtp) + 1e-300))
-    cti, Gti = _add_box(cti, Gti, rel_round * (_abs_bound(cti, Gti) + 1e-300))
-    ctp, Gtp = _reduce(ctp, Gtp, zono_order, reduce_method)
-    cti, Gti = _reduce(cti, Gti, zono_order, reduce_method)
+    ctp, Gtp = _add_box(ctp, Gtp, rel_round * (abs_bound(ctp, Gtp) + 1e-300))
+    cti, Gti = _add_box(cti, Gti, rel_round * (abs_bound(cti, Gti) + 1e-300))
+    ctp, Gtp = _reduce_tol(ctp, Gtp, zono_order, reduce_method, red_tol, keep)
+    cti, Gti = _reduce_tol(cti, Gti, zono_order, reduce_method, 5.0 * red_tol, keep)
+    info[2] = Gtp.shape[1]
+    info[3] = Gti.shape[1]
     if not (_all_finite(ctp) and _all_finite(Gtp) and _all_finite(cti) and _all_finite(Gti)):
         return c, empty, c, empty, true_err, NOT_FINITE, -1, -1
     return ctp, Gtp, cti, Gti, true_err, OK, -1, -1
@@ -436,11 +455,12 @@ def reach_loop(
     err = np.zeros(n)
     if start > 0:
         err = err_trace[start - 1].copy()
+    info = np.zeros(4, dtype=np.int64)
     for k in range(start, stop):
         ctp, Gtp, cti, Gti, e, st, bs, bt = nonlinear_step(
             c, G, U[k], wc, WG, p, dts[k], r, f, jac, hess, lagrange_iv,
             algorithm, tensor_order, zono_order, inter_order, err_order, reduce_method,
-            max_iter, max_error, err, rel_round,
+            max_iter, max_error, err, rel_round, 0.0, 0, info,
         )  # fmt: skip
         if st != OK:
             err_trace[k] = e

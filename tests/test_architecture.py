@@ -24,6 +24,7 @@ LAYERS = (
                                                             "reachconf.budget")),
     ("model, drawing", ("reachconf.model", "reachconf.plot")),
     ("reachability, built-in models", ("reachconf.reach", "reachconf.reach_options", "reachconf.reach_stream",
+                                       "reachconf.reach_adaptive", "reachconf.reach_log", "reachconf.tube_pieces",
                                        "reachconf.tube", "reachconf.models")),
     ("conformance, data sets", ("reachconf.conformance", "reachconf.datasets")),
     ("gap diagnosis", ("reachconf.diagnose",)),

@@ -4,6 +4,7 @@
 name                                  what
 ====================================  =====================================================
 ``vanderpol``                         Van der Pol oscillator (ARCH-COMP NLN)
+``coupled_vanderpol``                 coupled Van der Pol, 4-D (ARCH-COMP NLN)
 ``laub_loomis``                       Laub–Loomis 7-D benchmark (ARCH-COMP NLN)
 ``bicycle``                           dynamic bicycle model f_B, eqs. 49–52, Table 1
 ``bicycle_actuated``                  f_BX with first-order actuators, eqs. 53–58, Table 2
@@ -28,6 +29,7 @@ from reachconf.errors import ModelError
 
 _REGISTRY = {
     "vanderpol": "reachconf.models.benchmarks",
+    "coupled_vanderpol": "reachconf.models.benchmarks",
     "laub_loomis": "reachconf.models.benchmarks",
     "bicycle": "reachconf.models.vehicle",
     "bicycle_actuated": "reachconf.models.vehicle",

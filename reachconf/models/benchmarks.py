@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from reachconf.model.core import Model
 
-__all__ = ["vanderpol", "laub_loomis"]
+__all__ = ["vanderpol", "coupled_vanderpol", "laub_loomis"]
 
 
 def vanderpol(mu: float = 1.0) -> Model:
@@ -19,6 +19,27 @@ def vanderpol(mu: float = 1.0) -> Model:
         params={"mu": mu},
         dynamics=lambda s: [s.y, s.mu * (1 - s.x**2) * s.y - s.x],
         description="Van der Pol oscillator (ARCH-COMP NLN)",
+    )
+
+
+def coupled_vanderpol(mu: float = 1.0) -> Model:
+    """Two coupled Van der Pol oscillators (4-D, ARCH-COMP NLN 2020/21).
+
+    ``x1' = y1``, ``y1' = mu (1 - x1^2) y1 - 2 x1 + x2`` and the same with the
+    indices swapped.  ARCH (mu = 1): both oscillators start in
+    ``[1.25, 1.55] x [2.35, 2.45]``, ``T = 7``, specification ``y1, y2 <= 2.75``.
+    """
+    return Model(
+        name="coupled_vanderpol",
+        states=("x1", "y1", "x2", "y2"),
+        params={"mu": mu},
+        dynamics=lambda s: [
+            s.y1,
+            s.mu * (1 - s.x1**2) * s.y1 - 2 * s.x1 + s.x2,
+            s.y2,
+            s.mu * (1 - s.x2**2) * s.y2 - 2 * s.x2 + s.x1,
+        ],
+        description="two coupled Van der Pol oscillators (ARCH-COMP NLN)",
     )
 
 

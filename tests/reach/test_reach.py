@@ -82,8 +82,9 @@ def vdp_runs():
         rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.02, error_order=10),
         rc.ReachOptions(algorithm="poly", time_step=0.02, error_order=10),
         rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.05, reduction="pca", zonotope_order=5),
+        rc.ReachOptions(algorithm="adaptive"),
     ],
-    ids=["lin2", "lin3", "poly", "lin3-pca-coarse"],
+    ids=["lin2", "lin3", "poly", "lin3-pca-coarse", "adaptive"],
 )
 def test_vanderpol_sound(vdp_runs, options):
     model, (X, td, Xd) = vdp_runs
@@ -98,6 +99,16 @@ def test_vanderpol_sound_with_splits(vdp_runs):
     opts = rc.ReachOptions(tensor_order=3, time_step=0.02, max_error=0.03, max_splits=6)
     tube = rc.reach(model, VDP_X0, VDP_TIMES, options=opts)
     assert tube.splits > 0
+    assert any(isinstance(s, SetUnion) for s in tube.time_point_sets)
+    _assert_tube_contains(tube, X, td, Xd)
+
+
+def test_vanderpol_adaptive_sound_with_splits(vdp_runs):
+    """A tiny error budget makes the adaptive algorithm split; the pieces still cover every trajectory."""
+    model, (X, td, Xd) = vdp_runs
+    opts = rc.ReachOptions(algorithm=rc.AdaptiveReach(error_budget=0.05), max_splits=6)
+    tube = rc.reach(model, VDP_X0, VDP_TIMES, options=opts)
+    assert tube.splits > 0 and tube.log.splits == tube.splits
     assert any(isinstance(s, SetUnion) for s in tube.time_point_sets)
     _assert_tube_contains(tube, X, td, Xd)
 
@@ -123,8 +134,9 @@ def bike_runs():
         rc.ReachOptions(algorithm="lin", tensor_order=2, time_step=0.01),
         rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.02),
         rc.ReachOptions(algorithm="poly", time_step=0.02),
+        rc.ReachOptions(algorithm="adaptive"),
     ],
-    ids=["lin2", "lin3", "poly"],
+    ids=["lin2", "lin3", "poly", "adaptive"],
 )
 def test_bicycle_with_disturbances_sound(bike_runs, options):
     model, inputs, (X, td, Xd) = bike_runs
@@ -153,8 +165,9 @@ def closed_loop_runs():
 @pytest.mark.parametrize(
     "options",
     [rc.ReachOptions(algorithm="lin", tensor_order=2, time_step=0.02),
-     rc.ReachOptions(algorithm="poly", time_step=0.02)],
-    ids=["lin2", "poly"],
+     rc.ReachOptions(algorithm="poly", time_step=0.02),
+     rc.ReachOptions(algorithm="adaptive")],
+    ids=["lin2", "poly", "adaptive"],
 )  # fmt: skip
 def test_closed_loop_bicycle_lane_change_sound(closed_loop_runs, options):
     model, inputs, (X, td, Xd) = closed_loop_runs

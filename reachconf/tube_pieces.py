@@ -1,0 +1,137 @@
+"""Layout of a tube whose branches have their own time steps (``algorithm="adaptive"``).
+
+After a split, every piece (branch) of the set chooses its own steps.  The
+tube's time intervals are the common refinement of all branches' steps; the
+set over one of them is the union of, per live branch, the time-interval set
+of the step that covers it.  Time-point sets are taken at the sample times
+(every branch ends a step there) or, for a scalar horizon, at every step end
+of any branch (a branch without a step end there contributes the
+time-interval set that covers the time).
+
+Sets are built lazily (:class:`PieceSets`): a run with many branches has many
+more (interval, piece) pairs than a user will look at; bounds are computed
+from the arrays directly.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from reachconf.errors import ReachError
+
+__all__ = ["PieceSets", "PieceLayout", "piece_layout"]
+
+
+class PieceSets(Sequence):
+    """Read-only list of sets built on first access from groups of stored pieces.
+
+    ``make(ids)`` returns the set of the pieces ``ids`` (one Zonotope or a union).
+    """
+
+    def __init__(self, indptr, indices, make):
+        self._indptr = np.asarray(indptr, dtype=np.int64)
+        self._indices = np.asarray(indices, dtype=np.int64)
+        self._make = make
+        self._cache = {}
+
+    def __len__(self):
+        return self._indptr.size - 1
+
+    def __getitem__(self, j):
+        if isinstance(j, slice):
+            return [self[i] for i in range(*j.indices(len(self)))]
+        j = int(j)
+        if j < 0:
+            j += len(self)
+        if not 0 <= j < len(self):
+            raise IndexError(j)
+        out = self._cache.get(j)
+        if out is None:
+            out = self._make(self._indices[self._indptr[j] : self._indptr[j + 1]])
+            self._cache[j] = out
+        return out
+
+    def groups(self):
+        """``(indptr, indices)``: the pieces of every entry."""
+        return self._indptr, self._indices
+
+
+@dataclass
+class PieceLayout:
+    """Which stored pieces make up each set of the tube.
+
+    ``ti_*``: CSR over the time intervals (piece ids of time-interval sets);
+    ``tp_*``: CSR over the sample times 1.. (ids ``p`` of time-point pieces,
+    ``P + p`` for a time-interval piece standing in at that time).
+    """
+
+    times: np.ndarray
+    intervals: np.ndarray
+    ti_indptr: np.ndarray
+    ti_indices: np.ndarray
+    tp_indptr: np.ndarray
+    tp_indices: np.ndarray
+
+
+def _csr(rows, cols, count):
+    order = np.lexsort((cols, rows))
+    rows, cols = rows[order], cols[order]
+    indptr = np.searchsorted(rows, np.arange(count + 1))
+    return indptr.astype(np.int64), cols.astype(np.int64)
+
+
+def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
+    """Layout of the pieces of an adaptive run.
+
+    Parameters
+    ----------
+    samples : ndarray (K,)
+    scalar : bool
+        The horizon was a number: time-point sets at every step end.
+    t0 : ndarray (P,)
+        Start time of every stored step (piece).
+    branches : list
+        Objects with ``t_begin``, ``t_end``, ``rec_lo``, ``rec_hi`` (their
+        pieces) and ``sample_step`` (piece ending at each sample, -1 if none).
+    """
+    P = t0.size
+    span = float(samples[-1] - samples[0])
+    tol = 1e-12 * max(1.0, abs(float(samples[-1])), span)
+    live = [b for b in branches if b.rec_hi > b.rec_lo]
+    starts = {b.index: t0[b.rec_lo : b.rec_hi] for b in live}
+    ends = {b.index: np.append(t0[b.rec_lo + 1 : b.rec_hi], b.t_end) for b in live}
+    raw = np.sort(np.concatenate([[samples[0], samples[-1]], *starts.values(), *ends.values()]))
+    grid = raw[np.concatenate([[True], np.diff(raw) > tol])]
+    mids = 0.5 * (grid[:-1] + grid[1:])
+    rows, cols = [], []
+    for b in live:
+        sel = np.nonzero((mids > b.t_begin) & (mids < b.t_end))[0]
+        idx = np.clip(np.searchsorted(starts[b.index], mids[sel], side="right") - 1, 0, b.rec_hi - b.rec_lo - 1)
+        rows.append(sel)
+        cols.append(b.rec_lo + idx)
+    ti_indptr, ti_indices = _csr(np.concatenate(rows), np.concatenate(cols), mids.size)
+    rows, cols = [], []
+    if scalar:
+        times = grid
+        for b in live:
+            sel = np.nonzero((times > b.t_begin + tol) & (times <= b.t_end + tol))[0]
+            e = ends[b.index]
+            j = np.clip(np.searchsorted(e, times[sel] - tol), 0, e.size - 1)
+            at_end = np.abs(e[j] - times[sel]) <= tol
+            # step covering the time: the one ending at or after it
+            rows.append(sel - 1)
+            cols.append(np.where(at_end, b.rec_lo + j, P + b.rec_lo + j))
+    else:
+        times = samples
+        for b in live:
+            js = np.nonzero(b.sample_step >= 0)[0]
+            js = js[js >= 1]
+            rows.append(js - 1)
+            cols.append(b.sample_step[js])
+    tp_indptr, tp_indices = _csr(np.concatenate(rows), np.concatenate(cols), times.size - 1)
+    if np.any(np.diff(ti_indptr) == 0) or np.any(np.diff(tp_indptr) == 0):
+        raise ReachError("internal error: a time of the adaptive tube has no reachable set")
+    return PieceLayout(times, np.column_stack([grid[:-1], grid[1:]]), ti_indptr, ti_indices, tp_indptr, tp_indices)

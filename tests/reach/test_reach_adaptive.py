@@ -1,0 +1,99 @@
+"""``algorithm="adaptive"``: its record of what it chose, its limits and its informative failure.
+
+Soundness against 200 sampled trajectories per system is in ``test_reach.py`` (the "adaptive" cases).
+"""
+
+import numpy as np
+import pytest
+
+import reachconf as rc
+from reachconf.models import vanderpol
+
+VDP_X0 = rc.Interval([1.25, 2.35], [1.55, 2.45])
+
+
+@pytest.fixture(scope="module")
+def vdp_tube():
+    return rc.reach(vanderpol(), VDP_X0, 3.0, options=rc.ReachOptions(algorithm="adaptive"))
+
+
+def test_adaptive_records_steps_orders_and_splits(vdp_tube, tmp_path):
+    tube = vdp_tube
+    log = tube.log
+    assert log is not None and log.steps >= len(tube.time_interval_sets) > 10
+    # each branch's steps follow each other without gaps; they were chosen, not fixed
+    assert log.t0.min() == 0.0 and np.isclose((log.t0 + log.dt).max(), 3.0)
+    for b in np.unique(log.branch):
+        t0, dt = log.t0[log.branch == b], log.dt[log.branch == b]
+        assert np.allclose(t0[1:], t0[:-1] + dt[:-1])
+    assert log.dt.max() > 1.5 * log.dt.min()
+    assert set(np.unique(log.tensor_order)) <= {2, 3}
+    assert np.all(log.zonotope_order > 0) and np.all(log.error_rate >= 0)
+    assert log.splits == tube.splits == len(log.split_time)
+    # every piece but the first comes from a recorded split (or restart from a halved start set)
+    assert set(np.unique(log.branch).tolist()) - {0} <= set(log.split_children.ravel().tolist())
+    assert "steps" in log.summary() and "adaptive" in repr(tube)
+    # the record travels with the tube
+    path = tmp_path / "vdp.npz"
+    tube.save(path)
+    back = rc.ReachTube.load(path)
+    assert back.log is not None and np.array_equal(back.log.dt, log.dt)
+    assert np.array_equal(back.log.tensor_order, log.tensor_order)
+    # the bounds come from the arrays and hold every set
+    b = tube.bounds()
+    for s in (0, len(tube.time_interval_sets) // 2, -1):
+        iv = tube.time_interval_sets[s].interval()
+        assert np.all(b[s, 0] <= iv.lo + 1e-12) and np.all(iv.hi <= b[s, 1] + 1e-12)
+
+
+def test_adaptive_tube_is_tight(vdp_tube):
+    """Not sound by being huge: at t = 3 the box is within 3x the hull of simulated corners."""
+    from reachconf.model.simulate import simulate_ivp
+
+    m = vanderpol()
+    corners = np.array([[a, b] for a in (1.25, 1.55) for b in (2.35, 2.45)])
+    ends = np.array([simulate_ivp(m, x0, np.array([0.0, 3.0]), rtol=1e-10, atol=1e-12)[-1] for x0 in corners])
+    spread = ends.max(axis=0) - ends.min(axis=0)
+    iv = vdp_tube.time_point_sets[-1].interval()
+    assert np.all(iv.hi - iv.lo <= 3 * spread + 0.02)
+
+
+def test_adaptive_failure_says_what_it_tried_and_where():
+    X0 = rc.Interval([-6.0, -6.0], [6.0, 6.0])
+    with pytest.raises(rc.ReachError) as info:
+        rc.reach(vanderpol(), X0, 7.0, options=rc.ReachOptions(algorithm="adaptive", max_splits=2))
+    e = info.value
+    msg = str(e)
+    assert "vanderpol" in msg and "at t = " in msg
+    assert "time steps down to" in msg and "tensor order up to" in msg and "splits" in msg
+    assert e.time is not None and 0 <= e.time < 7.0
+    assert set(e.tried) >= {"smallest_step", "highest_tensor_order", "splits", "max_splits", "steps"}
+    assert e.tried["splits"] <= 2 and e.tried["smallest_step"] > 0
+
+
+def test_adaptive_stops_at_max_steps_instead_of_allocating():
+    opts = rc.ReachOptions(algorithm=rc.AdaptiveReach(max_steps=30))
+    with pytest.raises(rc.ReachError, match="max_steps = 30") as info:
+        rc.reach(vanderpol(), VDP_X0, 7.0, options=opts)
+    assert info.value.tried["steps"] >= 30 and info.value.term == "steps/memory"
+
+
+def test_adaptive_stops_at_its_memory_share(monkeypatch):
+    import reachconf.reach_adaptive as ra
+
+    monkeypatch.setattr(ra, "available_memory", lambda: 4e5)
+    with pytest.raises(rc.ReachError, match="available memory"):
+        rc.reach(vanderpol(), VDP_X0, 7.0, options=rc.ReachOptions(algorithm="adaptive"))
+
+
+@pytest.mark.parametrize("kw", [{"error_budget": 0.0}, {"error_budget": float("inf")}, {"max_order": 0.5},
+                                {"max_steps": 0}, {"max_steps": 2.5}, {"max_order": 1e6}])  # fmt: skip
+def test_adaptive_bad_parameters(kw):
+    with pytest.raises(rc.OptionsError, match="AdaptiveReach"):
+        rc.ReachOptions(algorithm=rc.AdaptiveReach(**kw))
+
+
+def test_adaptive_rejects_streaming():
+    with pytest.raises(rc.OptionsError, match="streamed"):
+        rc.reach_run(vanderpol(), VDP_X0, 1.0, options=rc.ReachOptions(algorithm="adaptive"),
+                     stream=lambda *a: None)  # fmt: skip
