@@ -5,6 +5,7 @@ and final width, next to Flow* 2.1.0's CPU times measured on this machine type
 (``../shared/research/peers.md``).  Run::
 
     python benchmarks/bench_reach.py [--repeat 3] [--profile]
+    python benchmarks/bench_reach.py --adaptive   # default-vs-tuned table (algorithm="adaptive")
 
 The first run of a fresh checkout also compiles the kernels and models
 (printed separately as "warm-up"); the figures are for warm caches.
@@ -147,11 +148,100 @@ def bench_closed_loop_bicycle(repeat):
             "detail": detail, "flowstar": "-", "settings": opts}  # fmt: skip
 
 
+# ----------------------------------------------- adaptive (no hand tuning) against the hand-tuned settings
+ADAPTIVE = rc.ReachOptions(algorithm="adaptive")
+
+
+def adaptive_instances():
+    """``(name, model, X0, times, inputs, W, verified(tube) -> (bool, str), tuned options or None)`` per instance."""
+    from reachconf.models import coupled_vanderpol
+
+    x0 = np.array([1.2, 1.05, 1.5, 2.4, 1.0, 0.1, 0.45])
+
+    def below(dims, limit, label):
+        def check(tube):
+            top = tube.bounds()[:, 1, dims].max()
+            return bool(top < limit), f"max {label} = {top:.4f} (< {limit})"
+
+        return check
+
+    rows = [
+        ("vanderpol mu=1, T=7", vanderpol(1.0), rc.Interval([1.25, 2.35], [1.55, 2.45]), 7.0, None, None,
+         below([1], 2.75, "y"), VDP_OPTIONS),
+        ("vanderpol mu=2, T=8", vanderpol(2.0), rc.Interval([1.55, 2.35], [1.85, 2.45]), 8.0, None, None,
+         below([1], 4.0, "y"), None),
+        ("coupled vanderpol mu=1, T=7", coupled_vanderpol(1.0),
+         rc.Interval([1.25, 2.35, 1.25, 2.35], [1.55, 2.45, 1.55, 2.45]), 7.0, None, None,
+         below([1, 3], 2.75, "y1, y2"), None),
+    ]
+    for W, opts in LL_OPTIONS.items():
+        spec = 4.5 if W < 0.1 else 5.0
+        rows.append((f"laub_loomis W={W}, T=20", laub_loomis(), rc.Interval(x0 - W, x0 + W), 20.0, None, None,
+                     below([3], spec, "x4"), opts))  # fmt: skip
+    try:
+        model, X0, times, Us, Wcl, opts = closed_loop_lc_problem()
+
+        def finished(tube):
+            fin = tube.final_set().interval()
+            return True, f"final width X {fin.hi[0] - fin.lo[0]:.3f} m, Y {fin.hi[1] - fin.lo[1]:.3f} m"
+
+        rows.append(("closed-loop bicycle LC 8 s", model, X0, times, Us, Wcl, finished, opts))
+    except ImportError:  # pragma: no cover - campaign not available
+        pass
+    return rows
+
+
+def _timed(run, repeat):
+    """``(CPU seconds best of repeat, wall seconds best of repeat, tube or ReachError)`` after one warm-up run."""
+    try:
+        run()
+    except rc.ReachError as exc:
+        return float("nan"), float("nan"), exc
+    cpu, wall, tube = np.inf, np.inf, None
+    for _ in range(repeat):
+        c0, w0 = time.process_time(), time.perf_counter()
+        tube = run()
+        cpu, wall = min(cpu, time.process_time() - c0), min(wall, time.perf_counter() - w0)
+    return cpu, wall, tube
+
+
+def bench_adaptive(repeat):
+    """Default-vs-tuned table: ``algorithm="adaptive"`` untouched against the hand-tuned settings, per instance."""
+    print(f"{'instance':30s} {'tuned':>22s} {'adaptive':>22s} {'ratio':>6s}   (CPU s, best of {repeat}, warm)")
+    rows = []
+    for name, model, X0, times, U, W, check, tuned in adaptive_instances():
+        cells = []
+        for opts in (tuned, ADAPTIVE):
+            if opts is None:
+                cells.append((float("nan"), None, "no hand-tuned setting"))
+                continue
+            cpu, wall, res = _timed(lambda o=opts: rc.reach(model, X0, times, inputs=U, W=W, options=o), repeat)
+            if isinstance(res, rc.ReachError):
+                cells.append((cpu, False, f"ReachError: {str(res)[:160]}"))
+            else:
+                ok, detail = check(res)
+                if res.log is not None:
+                    detail += f"; {res.log.steps} steps, splits {res.splits}"
+                cells.append((cpu, ok, detail))
+        ratio = cells[1][0] / cells[0][0] if cells[0][1] and cells[1][1] else float("nan")
+        fmt = lambda c: f"{c[0]:7.3f} {'verified' if c[1] else ('FAILED' if c[1] is False else '-'):>9s}"  # noqa: E731
+        print(f"{name:30s} {fmt(cells[0]):>22s} {fmt(cells[1]):>22s} {ratio:6.2f}")
+        print(f"    tuned:    {cells[0][2]}")
+        print(f"    adaptive: {cells[1][2]}")
+        rows.append((name, cells, ratio))
+    return rows
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--profile", action="store_true", help="profile the Van der Pol run (cProfile)")
+    parser.add_argument("--adaptive", action="store_true",
+                        help="only the default-vs-tuned table (algorithm='adaptive' against the hand-tuned settings)")
     args = parser.parse_args(argv)
+    if args.adaptive:
+        bench_adaptive(args.repeat)
+        return
     t0 = time.perf_counter()
     rows = [bench_vanderpol(args.repeat), *bench_laub_loomis(args.repeat), bench_closed_loop_bicycle(args.repeat)]
     print(f"(warm-up, compilation and all repeats took {time.perf_counter() - t0:.1f} s)\n")
