@@ -1,6 +1,6 @@
 """A real car on a race track (Stanford data, 100 Hz): conformance of the single-track model and its gap.
 
-    python examples/realcar/run.py --data ../shared/data/realcar --out DIR [--workers 2] [--quick]
+    python examples/realcar/run.py --data ../shared/data/realcar --out DIR [--workers 2] [--quick] [--no-diagnosis]
 
 The recording (550 s, measured; ``../shared/data/realcar/README.md``) and the
 built-in model ``single_track`` (linear tyres, the README's parameters):
@@ -22,7 +22,12 @@ built-in model ``single_track`` (linear tyres, the README's parameters):
    conformant (and undecided: the reach left the model's domain vx > 0)
    windows; reach tubes of vy and omega against time with the measurements
    for the calmest and the hardest 10-s case (``tube_calm.png``,
-   ``tube_hard.png``); W per band as a chart (``W_bands.png``).
+   ``tube_hard.png``); W per band as a chart (``W_bands.png``);
+5. the gap diagnosis ``rc.diagnose(single_track(), suite)`` with the tyre
+   effect ``tire_fiala`` and steering / sensor effects as candidates
+   (``diagnosis.py``; skipped with ``--no-diagnosis``): its report in
+   ``DIR/diagnosis``, and the Table-3 boxes per band again with the named
+   effect.
 
 Writes ``DIR/realcar.json``, ``DIR/realcar.md`` and the pictures; timings are
 wall and CPU seconds of this process (workers' CPU not included).  Bad
@@ -249,6 +254,7 @@ def main(argv=None):
     ap.add_argument("--out", required=True, help="output folder")
     ap.add_argument("--workers", type=int, default=None, help="local worker processes")
     ap.add_argument("--quick", action="store_true", help=f"only the first {QUICK_SECONDS:g} s of the run")
+    ap.add_argument("--no-diagnosis", action="store_true", help="stop after the conformance tables")
     ap.add_argument("--no-plots", action="store_true")
     args = ap.parse_args(argv)
     data = Path(args.data) if args.data else default_data()
@@ -312,6 +318,24 @@ def main(argv=None):
                     plot_stretch(car, hard, W_own, V, out / "tube_hard.png",
                                  f"hard stretch ({hard.name}, peak |ay| {max(peak):.1f} m/s²): vy, omega reach tubes"),
                     plot_bands(tab, counts, out / "W_bands.png")]  # fmt: skip
+        if not args.no_diagnosis:
+            from diagnosis import diagnosis_markdown, named_model, run_diagnosis, save_report
+
+            with clock("diagnosis"):
+                report = run_diagnosis(car, suite, V, progress=True)
+                result["diagnosis"] = report.to_dict()
+                print(f"5. diagnosis: {report.verdict}", flush=True)
+                fitted, parts, named = named_model(car, report)
+                bands_after, label = None, ""
+                if parts:  # how far: Table 3 again with the named (else the best scored) effects
+                    label = (("named: " if named else "best scored, not named: ")
+                             + " + ".join(f"{e}({g}) " + ", ".join(f"{k}={v:.3g}" for k, v in p.items())
+                                          for e, g, p in parts))  # fmt: skip
+                    bands_after, _, _, _ = table3(fitted, wins, V, pool)
+                    result["table3_after"] = {"model": label, "named": named, "table": bands_after}
+                result["diagnosis_markdown"] = diagnosis_markdown(report, tab, bands_after, label)
+                if not args.no_plots:
+                    result["diagnosis_pictures"] = save_report(report, out)
     except (rc.ReachconfError, OSError) as exc:
         print(f"realcar: error: {exc}", file=sys.stderr)
         return 2

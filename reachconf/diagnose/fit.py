@@ -157,7 +157,10 @@ def transformed_case(model, case, cand: Candidate, theta_eff: dict):
     """A copy of ``case`` as seen by the model with the candidate's input/output effects."""
     t, U, Y = case_arrays(model, case)
     U2, Y2 = transformed_signals(model, cand, theta_eff, t, U, Y)
-    return TestCase(case.name, getattr(case, "group", "default"), t, U2, Y2, model.input_names, model.output_names)
+    # extra signals (e.g. a measured lateral acceleration) travel along: the gap location correlates with them
+    extras = {k: v for k, v in dict(getattr(case, "extras", {})).items() if np.shape(v) == np.shape(t)}
+    return TestCase(case.name, getattr(case, "group", "default"), t, U2, Y2, model.input_names, model.output_names,
+                    extras)  # fmt: skip
 
 
 def _states(model, Ys, U, direct):

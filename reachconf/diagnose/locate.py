@@ -12,7 +12,9 @@ From the per-step disturbance traces of trace conformance (section 3.2.1),
   and per group — segments shared by most cases of a group are reported as
   "channel, t0-t1 s of every <group>";
 * in operating conditions, the Spearman rank correlation of ``|w|`` with every
-  measured signal and the magnitude of its rate of change.
+  measured signal (extras such as ``ay`` included) and the magnitude of its
+  rate of change, and binned envelopes of ``w`` over each signal
+  (:func:`binned_envelope`).
 
 Which unmodelled effect causes the gap, and how far W shrinks once it is
 modelled, is :func:`reachconf.diagnose` (this location is its ``where`` part).
@@ -31,7 +33,7 @@ from reachconf.io.cases import case_arrays
 from reachconf.model.outputs import evaluate_outputs
 from reachconf_kernels.integrate import rk4_one_step_each
 
-__all__ = ["GapLocation", "locate_gap"]
+__all__ = ["GapLocation", "locate_gap", "binned_envelope", "BINS"]
 
 
 @dataclass
@@ -55,6 +57,12 @@ class GapLocation(JsonResult):
     envelope : dict channel -> [lo, hi]
     drivers : dict channel -> dict output -> float
         Which outputs' errors drive each channel.
+    binned : dict channel -> dict signal -> dict
+        Binned envelopes: the measured signals (extras such as ``ay`` too)
+        cut into ``BINS`` quantile bins of their value (``|value|`` for
+        signals of both signs); per bin its ``edges``, the ``count`` of
+        samples, the disturbance's ``lo``/``hi`` (min/max) and ``q95`` of
+        ``|w|`` — how the gap depends on the operating condition.
     """
 
     channels: list
@@ -65,19 +73,20 @@ class GapLocation(JsonResult):
     conditions: dict
     envelope: dict = field(default_factory=dict)
     drivers: dict = field(default_factory=dict)
+    binned: dict = field(default_factory=dict)
 
     def to_dict(self):
         """All fields as JSON values."""
         return {"channels": self.channels, "shares": self.shares, "box": self.box, "envelope": self.envelope,
                 "segments": self.segments, "group_segments": self.group_segments,
-                "conditions": self.conditions, "drivers": self.drivers}  # fmt: skip
+                "conditions": self.conditions, "drivers": self.drivers, "binned": self.binned}  # fmt: skip
 
     @classmethod
     def from_dict(cls, d: dict) -> "GapLocation":
         """The location from :meth:`to_dict`."""
         return cls(list(d["channels"]), dict(d["shares"]), dict(d["box"]), dict(d["segments"]),
                    dict(d["group_segments"]), dict(d["conditions"]), dict(d.get("envelope", {})),
-                   dict(d.get("drivers", {})))  # fmt: skip
+                   dict(d.get("drivers", {})), dict(d.get("binned", {})))  # fmt: skip
 
     def plot(self, ax=None):
         """Channel shares of the normalised disturbance box as bars; returns the axes."""
@@ -207,7 +216,35 @@ def locate_gap(model, suite, V=None, envelope: float = 4.0, min_duration: float 
                     corr[k] = float(rho)
         conditions[n] = dict(sorted(corr.items(), key=lambda kv: -abs(kv[1])))
     drivers = _drivers(model, cases, traces, V)
-    return GapLocation(names, shares, box, segments, group_segments, conditions, env, drivers)
+    binned = {n: {k: binned_envelope(v, allW[:, i]) for k, v in F.items() if not k.startswith("|d")}
+              for i, n in enumerate(names)}  # fmt: skip
+    return GapLocation(names, shares, box, segments, group_segments, conditions, env, drivers, binned)
+
+
+#: number of quantile bins of :func:`binned_envelope`
+BINS = 5
+
+
+def binned_envelope(signal, w, bins: int = BINS) -> dict:
+    """Envelope of the disturbance ``w`` in quantile bins of a condition signal.
+
+    The bins are on ``|signal|`` when the signal takes both signs (a lateral
+    acceleration to the left or right loads the tyres alike), else on the
+    signal.  Returns ``{"abs": bool, "bins": [{"edges", "count", "lo", "hi",
+    "q95"}, ...]}`` (``q95``: 95th percentile of ``|w|`` in the bin).
+    """
+    s = np.asarray(signal, float)
+    w = np.asarray(w, float)
+    use_abs = bool(s.min() < 0 < s.max())
+    x = np.abs(s) if use_abs else s
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, bins + 1)))
+    out = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        sel = (x >= a) & ((x < b) | (b == edges[-1]))
+        if sel.any():
+            out.append({"edges": [float(a), float(b)], "count": int(sel.sum()), "lo": float(w[sel].min()),
+                        "hi": float(w[sel].max()), "q95": float(np.quantile(np.abs(w[sel]), 0.95))})  # fmt: skip
+    return {"abs": use_abs, "bins": out}
 
 
 def _drivers(model, cases, traces, V):

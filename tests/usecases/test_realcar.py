@@ -32,7 +32,7 @@ def data_mod():
 @pytest.fixture(scope="module")
 def quick(ex, tmp_path_factory):
     out = tmp_path_factory.mktemp("realcar")
-    assert ex.main(["--data", str(REAL), "--out", str(out), "--quick"]) == 0
+    assert ex.main(["--data", str(REAL), "--out", str(out), "--quick", "--no-diagnosis"]) == 0
     return out, json.loads((out / "realcar.json").read_text())
 
 
@@ -111,3 +111,38 @@ def test_reachset_windows_are_decided_and_pictures_written(quick):
     assert len(res["reachset_windows"]) == 30
     for name in ("tube_calm.png", "tube_hard.png", "W_bands.png"):
         assert (out / name).stat().st_size > 10_000
+
+
+@needs_data
+def test_gap_location_names_ay_with_rank_correlations_and_binned_envelopes(quick):
+    from reachconf.diagnose import locate_gap
+    from reachconf.diagnose.fit import Candidate, transformed_case
+    from reachconf.models import single_track
+
+    out, _ = quick
+    suite = load_suite(out / "suite")
+    car = single_track()
+    # the diagnosis hands the location the cases as the candidate model sees them: the extras travel along
+    assert "ay" in transformed_case(car, suite[0], Candidate(()), {}).extras
+    loc = locate_gap(car, suite).to_dict()
+    for ch in car.disturbance_names:
+        assert "ay" in loc["conditions"][ch]
+        bins = loc["binned"][ch]["ay"]
+        assert bins["abs"] and len(bins["bins"]) == 5
+    # the yaw channel's (per-step, noise-laden) gap is larger at high |ay| (measured on the first 60 s: 1.25x)
+    q = [b["q95"] for b in loc["binned"]["w_omega"]["ay"]["bins"]]
+    assert q[-1] > 1.1 * q[0]
+    assert loc["conditions"]["w_omega"]["ay"] != 0
+
+
+@needs_data
+@pytest.mark.slow
+def test_diagnosis_on_the_quick_run_writes_its_report(ex, tmp_path):
+    assert ex.main(["--data", str(REAL), "--out", str(tmp_path), "--quick", "--no-plots"]) == 0
+    res = json.loads((tmp_path / "realcar.json").read_text())
+    d = res["diagnosis"]
+    assert "ay" in d["where"]["location"]["conditions"]["w_omega"]
+    labels = " ".join(e.get("label", "") for e in d["ranked_effects"])
+    assert "tire_fiala" in labels
+    assert (tmp_path / "diagnosis" / "report.json").is_file()
+    assert "Gap diagnosis" in (tmp_path / "realcar.md").read_text()
