@@ -167,7 +167,7 @@ def _split(c: np.ndarray, G: np.ndarray, method: str):
 
 def _push_halves(pending, options, splits, status, step, c_fail, G_fail, depth) -> bool:
     """Split a set that failed at ``step`` into two pending branches, if allowed (returns whether it was)."""
-    if not (splits < options.max_splits and status in (3, 4, 2) and G_fail.shape[1] > 0):
+    if not (splits < options.effective_max_splits and status in (3, 4, 2) and G_fail.shape[1] > 0):
         return False
     half_a, half_b = _split(np.asarray(c_fail), np.asarray(G_fail), options.split_method)
     pending.append((step, *half_a, depth + 1))
