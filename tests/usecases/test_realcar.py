@@ -146,3 +146,47 @@ def test_diagnosis_on_the_quick_run_writes_its_report(ex, tmp_path):
     assert "tire_fiala" in labels
     assert (tmp_path / "diagnosis" / "report.json").is_file()
     assert "Gap diagnosis" in (tmp_path / "realcar.md").read_text()
+
+
+def _withheld():
+    import importlib.util
+
+    from conftest import REPO_ROOT
+
+    spec = importlib.util.spec_from_file_location("realcar_withheld", REPO_ROOT / "examples" / "realcar" / "withheld.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.mark.parametrize("tau", [0.03, 0.1, 0.25])
+def test_lag_injection_is_the_exact_inverse_of_the_library_lag(tau):
+    from reachconf_kernels.signals import first_order_lag
+
+    rng = np.random.default_rng(7)
+    t = np.arange(0, 20, 0.01)
+    y = 0.1 * np.sin(0.8 * t) + 0.02 * np.sin(3.1 * t) + rng.normal(0, 1e-4, t.size)
+    u = _withheld().lag_request(t, y, tau)
+    np.testing.assert_allclose(first_order_lag(t, u, tau)[:-1], y[:-1], atol=1e-9)
+
+
+def test_injections_change_what_the_model_is_given_and_report_the_truth():
+    from reachconf_kernels.signals import transport_delay
+
+    w = _withheld()
+    t = np.arange(0, 20, 0.01)
+    cols = {"t": t, "delta": 0.1 * np.sin(0.8 * t), "ax": np.cos(t), "omega": 0.2 * np.sin(0.5 * t),
+            "vx": 20 + t, "vy": 0 * t, "ay": np.sin(t)}  # fmt: skip
+    rec, truth = w.inject(cols, "dead_time", 0.08)
+    assert truth == {"effect": "dead_time", "target": "delta", "params": {"T": 0.08}}
+    real = transport_delay(t, rec["delta"], 0.08)
+    np.testing.assert_allclose(real[10:-10], cols["delta"][10:-10], atol=1e-4)  # the delayed record is the truth
+    rec, _ = w.inject(cols, "steer_offset", 0.01)
+    np.testing.assert_allclose(rec["delta"] + 0.01, cols["delta"])
+    rec, _ = w.inject(cols, "yaw_bias", 0.02)
+    np.testing.assert_allclose(rec["omega"] - 0.02, cols["omega"])
+    rec, truth = w.inject(cols, "ax_scale", 0.8)
+    np.testing.assert_allclose(0.8 * rec["ax"], cols["ax"])
+    assert truth["effect"] == "input_scale" and np.array_equal(rec["vx"], cols["vx"])
+    with pytest.raises(ValueError, match="unknown injection"):
+        w.inject(cols, "gravity", 1.0)
