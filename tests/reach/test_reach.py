@@ -103,6 +103,16 @@ def test_vanderpol_sound_with_splits(vdp_runs):
     _assert_tube_contains(tube, X, td, Xd)
 
 
+def test_lin_splits_with_the_default_max_splits(vdp_runs):
+    """``max_splits=None`` (the default) means 8 for "lin": splitting works without setting it (regression)."""
+    model, (X, td, Xd) = vdp_runs
+    opts = rc.ReachOptions(tensor_order=3, time_step=0.02, max_error=0.03)
+    assert opts.max_splits is None and opts.effective_max_splits == 8
+    tube = rc.reach(model, VDP_X0, VDP_TIMES, options=opts)
+    assert 0 < tube.splits <= 8
+    _assert_tube_contains(tube, X, td, Xd)
+
+
 def test_vanderpol_adaptive_sound_with_splits(vdp_runs):
     """A tiny error budget makes the adaptive algorithm split; the pieces still cover every trajectory."""
     model, (X, td, Xd) = vdp_runs
