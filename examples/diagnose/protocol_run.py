@@ -88,7 +88,10 @@ def run_protocol(args) -> int:
                 rank = {s.name: i for i, s in enumerate(specs)}
                 rows = sorted(done, key=lambda r: rank[r["spec"]["name"]])
             result[stage] = {"rows": rows, "coverage": coverage(rows), "options": dict(options)}
-            md.append(summary_tables(rows, f"{stage.capitalize()} set ({len(rows)} suites)"))
+            title = f"{stage.capitalize()} set ({len(rows)} suites)"
+            if len(rows) < len(specs):
+                title = f"{stage.capitalize()} set ({len(rows)} of the {len(specs)} suites: the run was stopped)"
+            md.append(summary_tables(rows, title))
             if stage == "tuning":
                 md += _choose(rows, cache, options, defaults, result, out)
                 options = {**options, **result["tuning"]["choice"]["chosen"]}  # the test set is run with the choice

@@ -62,6 +62,9 @@ def test_protocol_sets_are_made_differently():
     assert any(len(s.truth) >= 2 and len({t["target"] for t in s.truth}) == 2 for s in test)  # two effects at once
     assert len({round(s.noise, 3) for s in test}) > 5 and all(0.5 <= s.noise <= 2.0 for s in test)
     assert {s.noise for s in tuning} == {1.0}
+    order = protocol_eval.interleaved(test)  # a run stopped early has a sample of every category
+    assert sorted(s.name for s in order) == sorted(s.name for s in test)
+    assert len({s.category for s in order[:8]}) == len({s.category for s in test}) == 8
 
 
 def test_protocol_smoke_two_effects(tmp_path, nominal):
