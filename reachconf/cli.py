@@ -29,6 +29,7 @@ import argparse
 import os
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -422,7 +423,7 @@ def _save_partial(run, exc) -> str:
 
 
 def _handle_interrupt(run, exc, lost=False) -> int:
-    old = signal.signal(signal.SIGINT, signal.SIG_IGN) if _main_thread() else None
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN) if _in_main_thread() else None
     try:
         tail = _save_partial(run, exc)
     except ReachconfError as err:
@@ -434,9 +435,20 @@ def _handle_interrupt(run, exc, lost=False) -> int:
     return EXIT_WORKERS_LOST if lost else EXIT_INTERRUPTED
 
 
+def _in_main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+def _on_ctrl_c(signum, frame):  # any error after this counts as the interruption (_caused_by_ctrl_c)
+    _on_ctrl_c.pressed = True
+    raise KeyboardInterrupt
+
+
 def _caused_by_ctrl_c(exc: BaseException) -> bool:
-    """Did a KeyboardInterrupt cause ``exc``?  A Ctrl-C inside a callback from compiled code (numba
-    unpickling a function, a solver) surfaces as a SystemError or a library's own error around it."""
+    """Did Ctrl-C cause ``exc``?  Inside compiled code (numba, a solver, numpy importing ``datetime``) it
+    surfaces as a SystemError, ImportError or library error that may not carry the KeyboardInterrupt."""
+    if getattr(_on_ctrl_c, "pressed", False):
+        return True
     seen = set()
     while exc is not None and id(exc) not in seen:
         if isinstance(exc, KeyboardInterrupt):
@@ -446,16 +458,11 @@ def _caused_by_ctrl_c(exc: BaseException) -> bool:
     return False
 
 
-def _main_thread() -> bool:
-    import threading
-
-    return threading.current_thread() is threading.main_thread()
-
-
 def main(argv=None) -> int:
     """Run the command line; returns the exit status (see the module docstring)."""
     os.environ.setdefault("MPLBACKEND", "Agg")
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler) if _main_thread() else None
+    _on_ctrl_c.pressed = False
+    previous = signal.signal(signal.SIGINT, _on_ctrl_c) if _in_main_thread() else None
     run = None
     try:
         try:
