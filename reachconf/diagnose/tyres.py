@@ -27,7 +27,8 @@ its derivative.  The static axle loads are ``F_zf = m g l_r / (l_f + l_r)``
 and ``F_zr = m g l_f / (l_f + l_r)``.  Targets: ``c_f`` or ``c_r`` (one axle
 saturates, with its own friction coefficient) and ``axles`` (both, with one
 friction coefficient).  Its parameter is ``mu``; with ``mu`` large the model is
-the linear one.
+the linear one.  An axle whose force is already non-linear in its stiffness (a
+tyre effect applied before) is left as it is.
 """
 
 from __future__ import annotations
@@ -136,6 +137,10 @@ def tire_fiala_model(base, target: str, names) -> Model:
     axles = ("c_f", "c_r") if target == "axles" else (target,)
     f = list(base.f_expr)
     for c_name in axles:
+        if any(sp.diff(e, s[c_name], 2) != 0 for e in f):
+            # the axle saturates already (a tyre effect applied before, e.g. the pair axles + c_r of the
+            # diagnosis): it stays as it is and this friction coefficient does not act on it
+            continue
         _, lever = SINGLE_TRACK_AXLES[c_name]
         f_z = s.m * GRAVITY * s[lever] / (s.l_f + s.l_r)
         f0, k = _axle_force_factor(_Exprs(base, f), c_name, alphas[c_name])

@@ -68,3 +68,13 @@ def test_low_friction_limits_the_lateral_acceleration():
 def test_model_outside_the_convention_is_refused():
     with pytest.raises(ModelError, match="single-track convention"):
         EFFECTS["tire_fiala"].apply_model(bicycle(), "c_f", (1.0,))
+
+
+def test_a_second_tyre_effect_leaves_an_already_saturated_axle_alone():
+    """Pairs of the diagnosis (axles + c_r) must not fail: the second mu does not act on the saturated axle."""
+    car = single_track()
+    eff = EFFECTS["tire_fiala"]
+    both = eff.apply_model(car, "axles", (0.8,))
+    again = eff.apply_model(both, "c_r", (0.3,))
+    x, u = np.array([25.0, 0.4, 0.3]), np.array([0.0, 0.08])
+    np.testing.assert_allclose(_f(again)(x, u), _f(both)(x, u), rtol=1e-12)

@@ -190,3 +190,59 @@ def test_injections_change_what_the_model_is_given_and_report_the_truth():
     assert truth["effect"] == "input_scale" and np.array_equal(rec["vx"], cols["vx"])
     with pytest.raises(ValueError, match="unknown injection"):
         w.inject(cols, "gravity", 1.0)
+
+
+@pytest.fixture(scope="module")
+def clean_diagnosis():
+    """The diagnosis of the clean run (the reference the injected effects are sized against)."""
+    import sys
+
+    from conftest import REPO_ROOT
+
+    sys.path.insert(0, str(REPO_ROOT / "examples" / "realcar"))
+    from data import make_suite, noise_V, read_run
+    from diagnosis import run_diagnosis
+
+    import reachconf as rc
+    from reachconf.models import single_track
+
+    cols = read_run(REAL)
+    half = np.array([h for _, h in noise_V(cols).values()])
+    V = rc.Interval(-half, half)
+    return cols, V, run_diagnosis(single_track(), make_suite(cols), V)
+
+
+def _fitted(report, effect, target):
+    """The parameter of (effect, target) fitted alone (the one-effect model of the ranking)."""
+    label = f"{effect}({target})"
+    e = next(e for e in report.ranked_effects if e.get("label") == label and e.get("params_by_effect"))
+    return next(iter(e["params_by_effect"][label].values()))
+
+
+@needs_data
+@pytest.mark.slow
+@pytest.mark.parametrize("name, value", [
+    ("steer_offset", 0.012),
+    pytest.param("yaw_bias", 0.025, marks=pytest.mark.xfail(
+        reason="measured: output_offset(omega) is fitted within 2 % but ranked 2nd behind input_scale(ax) + "
+               "tire_fiala(axles); the vx channel (noisy measured ax) dominates the held-out loss", strict=False)),
+    pytest.param("dead_time", 0.04, marks=pytest.mark.xfail(
+        reason="measured (T = 0.05 s): nothing named, dead_time(delta) not among the five best models", strict=False)),
+])  # fmt: skip
+def test_injected_effect_is_named_first_and_sized_within_30_percent(clean_diagnosis, name, value):
+    from diagnosis import run_diagnosis
+
+    from reachconf.models import single_track
+
+    cols, V, clean = clean_diagnosis
+    w = _withheld()
+    from data import make_suite
+
+    inj, truth = w.inject(cols, name, value)
+    report = run_diagnosis(single_track(), make_suite(inj), V)
+    assert report.named, report.verdict
+    first = report.named[0]
+    assert (first["effect"], first["target"]) == (truth["effect"], truth["target"])
+    (param, size), = truth["params"].items()
+    moved = first["params"][param] - _fitted(clean, truth["effect"], truth["target"])
+    assert abs(moved - size) <= 0.3 * abs(size), (moved, size)
