@@ -17,7 +17,7 @@ the files instead loads them in about a second.  A *bundle* holds
 are missing or differ).  numba checks its cache entries itself (the source
 file's contents, the numba version, the CPU): an entry that does not fit the
 worker is ignored and compiled there, so a bundle is never wrong, at worst
-useless.  This module imports no kernels (importing some of them compiles
+useless.  This module imports no kernel module (importing some of them compiles
 them: the files must be in place first).
 """
 
@@ -60,27 +60,18 @@ def kernels_source_dir() -> Path:
     return Path(list(spec.submodule_search_locations)[0])
 
 
-def _probe():  # pragma: no cover - never called: numba's locators read its first line number only
-    pass
-
-
 def numba_cache_dir(source) -> Path | None:
     """The folder numba caches the compiled functions of the Python file ``source`` in (None: no cache).
 
     The locators are tried in numba's own order: ``NUMBA_CACHE_DIR``, the
     ``__pycache__`` folder next to the source when it is writable, the user
-    cache folder.
+    cache folder (:func:`reachconf_kernels.cache_stamp.cache_folder`, the one
+    place that asks numba).  Importing the kernel package checks its cache
+    stamp but compiles nothing.
     """
-    from numba.core import caching
+    from reachconf_kernels.cache_stamp import cache_folder
 
-    for name in ("UserProvidedCacheLocator", "InTreeCacheLocator", "UserWideCacheLocator"):
-        cls = getattr(caching, name, None) or getattr(caching, "_" + name, None)  # public names since numba 0.6x
-        if cls is None:
-            continue
-        locator = cls.from_function(_probe, str(source))
-        if locator is not None:
-            return Path(locator.get_cache_path())
-    return None
+    return cache_folder(Path(source))
 
 
 def _numba_files(source: Path):
@@ -105,7 +96,7 @@ def model_cache_bundle(paths) -> dict:
 
 def kernel_cache_bundle() -> dict:
     """The bundle of numba's caches of every :mod:`reachconf_kernels` module compiled on this machine."""
-    from reachconf_kernels.cache_stamp import STAMP_NAME  # the client has the kernels loaded already
+    from reachconf_kernels.cache_stamp import STAMP_NAME
 
     numba = []
     for source in sorted(kernels_source_dir().glob("*.py")):
