@@ -34,6 +34,7 @@ import time
 from pathlib import Path
 
 from reachconf import commands
+from reachconf.cli_cases import add_pool_options, apply_worker_timeout, pool_settings
 from reachconf.errors import DataError, ReachconfError
 
 __all__ = ["main", "build_parser", "EXIT_OK", "EXIT_USER_ERROR", "EXIT_UNDECIDED", "EXIT_WORKERS_LOST",
@@ -105,7 +106,8 @@ def cmd_demo(args, run):
     """``reachconf demo``: the main job on the shipped lane-change suite."""
     from reachconf.demo import run_demo
 
-    summary = run_demo(run.outputs.folder, workers=args.workers)
+    workers, scheduler = pool_settings(args, None)
+    summary = run_demo(run.outputs.folder, workers=workers, scheduler=scheduler)
     if args.json:
         run.outputs.write_json(args.json, summary)
     return EXIT_OK
@@ -123,10 +125,8 @@ def cmd_reach(args, run):
 
     import dataclasses
 
+    from reachconf.cli_cases import map_cases, reach_case
     from reachconf.conformance.reachset import initial_set, reach_plan
-    from reachconf.errors import ReachError
-    from reachconf.reach import reach
-    from reachconf.reach_stream import reach_streamed
 
     spec = _load(args)
     suite = _select_cases(spec, args)
@@ -135,37 +135,43 @@ def cmd_reach(args, run):
     # pre-flight: every case's memory before the first one starts; big tubes are streamed
     plan = {case.name: reach_plan(spec.model, spec.reach_options, case, STREAM_TUBE_BYTES) for case in suite}
     results = run.partial = {}
-    for case in suite:
-        t0 = time.perf_counter()
-        ropts = spec.reach_options
-        if case.t.size >= PROGRESS_SAMPLES and ropts.progress is None:
-            ropts = dataclasses.replace(ropts, progress=True)
-        reach_fn = reach_streamed if plan[case.name] else reach
-        kw = {"time_limit": args.time_limit} if plan[case.name] else {}
-        try:
-            tube = reach_fn(spec.model, X0s[case.name], case.t - case.t[0], inputs=case.U if spec.model.m else None,
-                            W=spec.W, options=ropts, **kw)  # fmt: skip
-        except ReachError as exc:
+    cases = {case.name: case for case in suite}
+
+    def jobs(parallel):
+        out_ = []
+        for case in suite:
+            ropts = spec.reach_options
+            if ropts.progress is None and (parallel or case.t.size >= PROGRESS_SAMPLES):
+                ropts = dataclasses.replace(ropts, progress=not parallel)  # no bars drawn by workers
+            out_.append((spec.model, case, X0s[case.name], spec.W, ropts, plan[case.name], args.time_limit))
+        return out_
+
+    def on_result(name, res):
+        case = cases[name]
+        if "error" in res:
             run.undecided = True
-            results[case.name] = {"failed": True, "message": str(exc), "seconds": time.perf_counter() - t0}
-            print(f"{case.name}: reach failed: {' '.join(str(exc).split())}")
-            continue
-        entry = {"failed": False, "seconds": time.perf_counter() - t0, "splits": tube.splits}
-        if plan[case.name]:  # every step's bounds are in the .npz; the JSON gets their hull
+            results[name] = {"failed": True, "message": res["error"], "seconds": res["seconds"]}
+            print(f"{name}: reach failed: {' '.join(res['error'].split())}")
+            return
+        tube = res["tube"]
+        entry = {"failed": False, "seconds": res["seconds"], "splits": tube.splits}
+        if plan[name]:  # every step's bounds are in the .npz; the JSON gets their hull
             hull = tube.interval_hull()
             entry.update(streamed=True, keep_every=tube.keep_every, interval_hull=[hull.lo.tolist(), hull.hi.tolist()])
         else:
             entry["bounds"] = tube.bounds()
         if out is not None:
-            entry["npz"] = str(tube.save(out / f"{case.name}_tube.npz"))
+            entry["npz"] = str(tube.save(out / f"{name}_tube.npz"))
             fig, ax = plt.subplots(figsize=(8, 4))
             tube.plot(ax=ax, label="reach tube", measured=case)
             ax.legend()
             fig.tight_layout()
-            _savefig(fig, out / f"{case.name}_tube.png")
-            entry["png"] = str(out / f"{case.name}_tube.png")
-        results[case.name] = entry
-        print(f"{case.name}: reach over {case.duration:g} s in {entry['seconds']:.2f} s")
+            _savefig(fig, out / f"{name}_tube.png")
+            entry["png"] = str(out / f"{name}_tube.png")
+        results[name] = entry
+        print(f"{name}: reach over {case.duration:g} s in {entry['seconds']:.2f} s")
+
+    map_cases(args, spec, reach_case, list(cases), jobs, on_result, desc="reach")
     _write_results(run, results, "reach.json")
     return EXIT_UNDECIDED if run.undecided else EXIT_OK
 
@@ -181,8 +187,9 @@ def _write_results(run, results, name):
 def cmd_conform(args, run):
     """``reachconf conform RUN.toml``: trace and/or reachset conformance per test case."""
     from reachconf.budget import check_memory
-    from reachconf.conformance.reachset import reach_bytes_per_step, reach_step_count, reachset_conformance
-    from reachconf.conformance.trace import trace_bytes_per_sample, trace_conformance
+    from reachconf.cli_cases import conform_case, map_cases
+    from reachconf.conformance.reachset import reach_bytes_per_step, reach_step_count
+    from reachconf.conformance.trace import trace_bytes_per_sample
     from reachconf.verdict import Verdict
 
     spec = _load(args)
@@ -200,32 +207,24 @@ def cmd_conform(args, run):
             check_memory(f"reachset conformance of case {case.name!r}", reach_step_count(case.t, spec.reach_options),
                          per, fixed)  # fmt: skip
     results = run.partial = {}
-    for case in suite:
-        entry = {}
-        progress = True if case.t.size >= PROGRESS_SAMPLES else None
-        if "trace" in kinds:
-            res = trace_conformance(spec.model, case, spec.W, spec.V, method=spec.trace_method,
-                                    options=spec.trace_options, progress=progress,
-                                    time_limit=args.time_limit)  # fmt: skip
-            # the summary fields only (to_dict would list the traces: a long case's would not fit in memory)
-            entry["trace"] = {"verdict": res.verdict, "conformant": res.verdict.json_conformant, "method": res.method,
-                              "reason": res.reason, "margins": res.margins, "margin_times": res.margin_times,
-                              "seconds": res.seconds, "message": res.message}  # fmt: skip
-        if "reachset" in kinds:
-            res = reachset_conformance(spec.model, case, spec.W, spec.V, X0=spec.X0, options=spec.reach_options,
-                                       keep_tube=False, progress=progress, time_limit=args.time_limit)  # fmt: skip
-            entry["reachset"] = {"verdict": res.verdict, "conformant": res.verdict.json_conformant,
-                                 "first_violation_time": res.first_violation_time,
-                                 "max_violation": res.max_violation, "seconds": res.seconds,
-                                 "message": res.message}  # fmt: skip
+
+    def jobs(parallel):
+        return [(spec.model, case, spec.W, spec.V, spec.X0, kinds, spec.trace_method, spec.trace_options,
+                 spec.reach_options, False if parallel else (True if case.t.size >= PROGRESS_SAMPLES else None),
+                 args.time_limit)
+                for case in suite]  # fmt: skip
+
+    def on_result(name, entry):
         parts = []
         for kind, e in entry.items():
             verdict = Verdict(e["verdict"])
             run.undecided |= verdict is Verdict.UNDECIDED
             why = f" ({' '.join(e['message'].split())})" if verdict is Verdict.UNDECIDED else ""
             parts.append(f"{kind}: {verdict.label}{why}")
-        results[case.name] = entry  # complete cases only: a Ctrl-C saves these
-        print(f"{case.name}: {', '.join(parts)}")
+        results[name] = entry  # complete cases only: a Ctrl-C saves these
+        print(f"{name}: {', '.join(parts)}")
+
+    map_cases(args, spec, conform_case, [case.name for case in suite], jobs, on_result, desc="conform")
     _write_results(run, results, "conformance.json")
     return EXIT_UNDECIDED if run.undecided else EXIT_OK
 
@@ -233,16 +232,14 @@ def cmd_conform(args, run):
 def cmd_synth(args, run):
     """``reachconf synth RUN.toml``: the minimal disturbance set (steps 1-3 and the merge)."""
     from reachconf.conformance.synthesis import synthesize_W
-    from reachconf.runner import check_scheduler
     from reachconf.verdict import Verdict
 
     spec = _load(args)
     if spec.V is None:
         raise DataError(f"{spec.path}: synthesis needs sets.V")
     suite = _select_cases(spec, args)
-    check_scheduler(args.scheduler)
-    workers = args.workers or (None if args.scheduler else spec.workers)  # --scheduler overrides the file's workers
-    res = synthesize_W(spec.model, suite, spec.V, spec.synthesis_options, workers=workers, scheduler=args.scheduler)
+    workers, scheduler = pool_settings(args, spec)  # --scheduler overrides the file's workers
+    res = synthesize_W(spec.model, suite, spec.V, spec.synthesis_options, workers=workers, scheduler=scheduler)
     print(res.table())
     for c in res.cases.values():
         print(f"  {c.name}: alpha = {c.alpha:.4g}, W_RC {c.verdict.label}, {c.seconds:.2f} s"
@@ -344,14 +341,14 @@ def build_parser() -> argparse.ArgumentParser:
                 epilog="exit status: 0 done, 2 user error, 3 some verdict undecided, 130 interrupted")  # fmt: skip
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    def common(sp, run=True):
+    def common(sp, run=True, pool=True):
         if run:
             sp.add_argument("run", help="TOML run file (model, suite, sets, options)")
             sp.add_argument("--case", action="append", help="only this test case (repeatable)")
         sp.add_argument("--json", help="write machine-readable results to this file")
         sp.add_argument("--out", help="folder for pictures and result files")
-        sp.add_argument("--workers", type=commands.positive_int, default=None, help="local worker processes (>= 1)")
-        sp.add_argument("--scheduler", default=None, help="Dask scheduler address tcp://host:port")
+        if pool:  # the diagnosis of one suite runs in this process: no worker options there
+            add_pool_options(sp, commands.positive_int)
         sp.add_argument("--time-limit", type=float, default=None, dest="time_limit",
                         help="seconds per case and kind; a run projected to take longer stops after its first part")  # fmt: skip
 
@@ -369,8 +366,8 @@ def build_parser() -> argparse.ArgumentParser:
     common(sp)
     sp.set_defaults(fn=cmd_synth)
     sp = sub.add_parser("diagnose", help="sim-to-real gap: where it lies, which effect causes it, how far W shrinks")
-    common(sp)
-    sp.set_defaults(fn=cmd_diagnose)
+    common(sp, pool=False)
+    sp.set_defaults(fn=cmd_diagnose, workers=None, scheduler=None, worker_timeout=None)
     commands.add_commands(sub, common, {"warmup": commands.cmd_warmup, "pareto": lambda args, run: commands.cmd_pareto(
         args, run, _load, _select_cases, _savefig)})  # fmt: skip
     sp = sub.add_parser("plot", help="plot a result (tube .npz, synthesis or Pareto JSON)")
@@ -470,6 +467,7 @@ def main(argv=None) -> int:
         except SystemExit as exc:  # --help (0) or a usage error (2, printed by _Parser.error)
             return exc.code if isinstance(exc.code, int) else EXIT_USER_ERROR
         run = _Run(args, None)
+        apply_worker_timeout(args)
         run.outputs = _outputs(args)  # checked and locked before anything is computed
         try:
             return args.fn(args, run)

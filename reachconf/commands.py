@@ -45,21 +45,20 @@ def cmd_pareto(args, run, load, select_cases, savefig):
     """
     from reachconf.conformance.pareto import pareto_front
     from reachconf.conformance.synthesis import PRELOAD, synthesize_W
-    from reachconf.runner import Pool, check_scheduler
+    from reachconf.cli_cases import pool_settings
+    from reachconf.runner import Pool
 
     if run.outputs.folder is None:
         raise OptionsError("pareto: --out DIR is required (front.json and front.png go there)")
-    check_scheduler(args.scheduler)
-    if args.scheduler is not None and args.workers is not None:
-        raise OptionsError("give --workers or --scheduler, not both")
+    pool_settings(args, None)  # the address and the flags, before the run file
     spec = load(args)
     if spec.V is None:
         raise DataError(f"{spec.path}: the Pareto front needs sets.V")
     suite = select_cases(spec, args)
     out = run.outputs.folder
     run.partial = {}
-    workers = args.workers or (None if args.scheduler else spec.workers)  # --scheduler overrides the file's workers
-    with Pool(workers, args.scheduler, preload=PRELOAD) as pool:
+    workers, scheduler = pool_settings(args, spec)  # --scheduler overrides the file's workers
+    with Pool(workers, scheduler, preload=PRELOAD) as pool:
         print(f"workers: {pool.describe()}", flush=True)
         start = spec.W
         if start is None:

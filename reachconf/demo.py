@@ -136,8 +136,12 @@ def demo_run_file() -> Path:
     return Path(str(resources.files("reachconf") / "data" / "demo" / "run.toml"))
 
 
-def run_demo(out, workers=None, log=print) -> dict:
-    """Run the demo into folder ``out``: returns the summary (also written to ``out/summary.json``)."""
+def run_demo(out, workers=None, log=print, scheduler=None) -> dict:
+    """Run the demo into folder ``out``: returns the summary (also written to ``out/summary.json``).
+
+    ``workers`` (local processes) or ``scheduler`` (a Dask address) run the
+    synthesis on a pool, as in :func:`reachconf.conformance.synthesize_W`.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -161,7 +165,7 @@ def run_demo(out, workers=None, log=print) -> dict:
     summary["timings"]["trace"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    synth = synthesize_W(model, suite, spec.V, spec.synthesis_options, workers=workers)
+    synth = synthesize_W(model, suite, spec.V, spec.synthesis_options, workers=workers, scheduler=scheduler)
     summary["timings"]["synthesis"] = time.perf_counter() - t0
     summary["synthesis"] = synth.to_dict()
     synth.to_json(out / "synthesis.json")

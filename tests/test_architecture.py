@@ -29,7 +29,7 @@ LAYERS = (
     ("conformance, data sets", ("reachconf.conformance", "reachconf.datasets")),
     ("gap diagnosis", ("reachconf.diagnose",)),
     ("run files, demo, warm-up", ("reachconf.runfile", "reachconf.demo", "reachconf.warmup")),
-    ("command line", ("reachconf.cli", "reachconf.commands")),
+    ("command line", ("reachconf.cli", "reachconf.cli_cases", "reachconf.commands")),
     ("the package face", ("reachconf",)),
 )
 #: (importer, imported) pairs allowed to run against the layering: at most one, each with its reason
