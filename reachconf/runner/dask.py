@@ -31,8 +31,25 @@ __all__ = ["DaskBackend", "WorkerSetup", "connect"]
 
 #: seconds between two questions to the scheduler about its number of workers
 COUNT_INTERVAL = 1.0
-#: longest pause between two looks at the pending tasks' states while waiting
-POLL_NAP = 0.02
+#: longest sleep between two looks at the pending tasks while waiting; a finishing task wakes the waiters at once
+POLL_NAP_MAX = 0.5
+
+
+def call_on_one_thread(fn, job):
+    """``fn(job)`` with one numba thread in the Dask worker's task thread.
+
+    A Dask worker runs tasks in its own threads; numba's thread count is per
+    thread, so the parallel kernels (e.g. point containment) would otherwise
+    use every core in every worker and oversubscribe the machine (the local
+    process pool sets one thread in its initializer instead).
+    """
+    try:
+        import numba
+
+        numba.set_num_threads(1)
+    except Exception:  # noqa: BLE001 - numba absent or its threading layer not ready: run as it is
+        pass
+    return fn(job)
 
 
 def connect(address: str, timeout: float | None = None) -> Client:
@@ -92,6 +109,7 @@ class DaskBackend:
         self._events = queue.SimpleQueue()
         self._keys = {}
         self._lock = threading.Lock()
+        self._finished = threading.Condition()
         self._registered = set()
         self._empty_since = None
         self._last_count = 0.0
@@ -155,21 +173,29 @@ class DaskBackend:
 
     # ------------------------------------------------------------------ tasks
     def submit(self, task):
-        """``client.submit(fn, job)``."""
-        task.inner = self.client.submit(task.fn, task.job, pure=False)
+        """``client.submit(fn, job)``, run on one numba thread (:func:`call_on_one_thread`)."""
+        task.inner = self.client.submit(call_on_one_thread, task.fn, task.job, pure=False)
         self._keys[task.inner.key] = task
+        task.inner.add_done_callback(self._on_done)
+
+    def _on_done(self, _future):
+        with self._finished:
+            self._finished.notify_all()
 
     def wait(self, pending, timeout):
         """The pending tasks that finished within ``timeout``."""
-        # polled, not distributed.wait: several threads (the merge's groups, the Pareto orders) wait at once, and
-        # distributed.wait from several threads made the client's event loop fail ("deque mutated during iteration")
-        deadline, nap = time.monotonic() + timeout, 0.002
+        # not distributed.wait: several threads (the merge's groups, the Pareto orders) wait at once, and
+        # distributed.wait from several threads made the client's event loop fail ("deque mutated during
+        # iteration"); the futures' done-callbacks wake the waiters instead (a capped sleep guards against a
+        # callback that never comes)
+        deadline = time.monotonic() + timeout
         while True:
-            done = [t for t in pending if t.inner.done()]
-            if done or time.monotonic() >= deadline:
-                break
-            time.sleep(nap)
-            nap = min(2 * nap, POLL_NAP)
+            with self._finished:
+                done = [t for t in pending if t.inner.done()]
+                left = deadline - time.monotonic()
+                if done or left <= 0:
+                    break
+                self._finished.wait(min(left, POLL_NAP_MAX))
         finished = []
         for task in done:
             fut = task.inner
