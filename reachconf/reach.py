@@ -28,6 +28,7 @@ from reachconf.checks import check_options
 from reachconf.errors import OptionsError, ReachError
 from reachconf.model.core import require_model
 from reachconf.reach_adaptive import run_adaptive
+from reachconf.reach_errors import fixed_step_failure
 from reachconf.reach_options import AdaptiveReach, ReachOptions
 from reachconf.sets.convert import as_zonotope
 from reachconf.sets.core import Zonotope
@@ -35,20 +36,6 @@ from reachconf.tube import ReachTube
 
 __all__ = ["ReachOptions", "reach", "reach_run", "ReachRun", "ReachStopped"]
 
-_STATUS = {
-    1: "a guarded interval operation failed (division by an interval containing 0, log/sqrt of a "
-    "non-positive interval or tan across a pole)",
-    2: "the set or its error bound became NaN/inf",
-    3: "the abstraction-error bound did not converge (the set grows faster than the linearisation "
-    "can follow)",
-    4: "the abstraction error exceeded options.max_error",
-}
-_TERMS = {
-    0: "second-order Lagrange remainder (over the set)",
-    1: "quadratic term at the linearisation point (quad_map of the Hessian)",
-    2: "third-order Lagrange remainder (over the set)",
-    3: "static quadratic term of 'poly'",
-}
 
 
 # ---------------------------------------------------------------------------
@@ -390,7 +377,7 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None,
             if _push_halves(pending, options, splits, status, step, c_fail, G_fail, depth):
                 splits += 1
                 continue
-            raise _reach_error(model, options, status, step, bad_state, bad_term, t_start, dts, store["err"][step],
+            raise fixed_step_failure(model, options, status, step, bad_state, bad_term, t_start, dts, store["err"][step],
                                comp, splits)  # fmt: skip
     except KeyboardInterrupt:
         raise
@@ -448,7 +435,7 @@ def _reach_streamed(model, options, Z0, Wz, samples, step_offsets, t_start, dts,
                     if _push_halves(pending, options, splits, status, end, c_fail, G_fail, depth):
                         splits += 1
                         break
-                    raise _reach_error(model, options, status, end, bad_state, bad_term, t_start, dts,
+                    raise fixed_step_failure(model, options, status, end, bad_state, bad_term, t_start, dts,
                                        store["err"][step], comp, splits)  # fmt: skip
                 # the last step's error bound seeds the next chunk (slot 0)
                 store["err"][0] = store["err"][stop - 1 - base]
@@ -476,25 +463,3 @@ def _adaptive(model, Z0, Wz, samples, scalar, inputs, options, monitor):
     finally:
         if bar is not None:
             bar.close()
-
-
-def _reach_error(model, options, status, step, bad_state, bad_term, t_start, dts, err, comp, splits):
-    t = float(t_start[step])
-    where = f"at t = {t:.6g} s (step {step}, dt = {dts[step]:.3g} s)"
-    if status == 1:
-        guard = comp.guards[bad_state - 1] if 0 < bad_state <= len(comp.guards) else "an interval operation"
-        msg = (f"reachability of model {model.name!r} failed {where}: {guard}. The set has grown into a region "
-               f"where the model is not defined; reduce the initial set or W, or use a smaller time_step.")
-        return ReachError(msg, time=t, state=None, term="domain")
-    state = model.state_names[bad_state] if 0 <= bad_state < model.n else None
-    term = _TERMS.get(bad_term, "abstraction error")
-    detail = f" in state {state!r} through the {term}" if state else ""
-    size = f"; error bound there {err[bad_state]:.3g}" if state and np.isfinite(err[bad_state]) else ""
-    hints = [f"a smaller time_step (now {dts[step]:.3g})"]
-    if options.effective_tensor_order == 2:
-        hints.append("tensor_order=3 (or algorithm='poly')")
-    hints.append(f"a larger max_splits (used {splits} of {options.effective_max_splits})")
-    hints.append("splitting the initial set, or a smaller initial set / disturbance set W")
-    msg = (f"reachable set of model {model.name!r} exploded {where}{detail}: {_STATUS.get(status, '')}{size}. "
-           f"Try {', '.join(hints)}.")
-    return ReachError(msg, time=t, state=state, term=term)

@@ -42,6 +42,7 @@ import numpy as np
 
 from reachconf.budget import available_memory, format_bytes
 from reachconf.errors import ReachError
+from reachconf.reach_errors import adaptive_failure
 from reachconf.reach_log import ReachLog
 
 __all__ = ["AdaptiveRun", "run_adaptive", "DT_MIN_FRACTION", "MEMORY_SHARE"]
@@ -79,17 +80,6 @@ RESTART_WINDOW = 0.01
 #: After a split that would not help, no split is tried for this fraction of the horizon.
 NO_SPLIT_SPAN = 0.05
 
-_TERMS = {
-    0: "second-order Lagrange remainder (interval Hessian over the set)",
-    1: "quadratic term at the linearisation point (quad_map of the Hessian)",
-    2: "third-order Lagrange remainder (interval third-order tensor over the set)",
-}
-_STATUS = {
-    -1: "the error rate grew faster than smaller steps could follow: the set exploded",
-    1: "a guarded interval operation failed",
-    2: "the set or its error bound became NaN/inf",
-    3: "the abstraction-error bound did not converge",
-}
 
 
 @dataclass
@@ -233,7 +223,44 @@ class _Task:
 
 def run_adaptive(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=None, progress=None,
                  stopped=StopIteration) -> AdaptiveRun:  # fmt: skip
-    """Adaptive reach of ``model`` from ``Z0`` over the sample grid ``samples``.
+    """Adaptive reach of ``model`` from ``Z0`` over the sample grid ``samples`` (see :func:`_run_once`).
+
+    When the abstraction error cannot be bounded (the set explodes), the
+    whole reach runs again with half the error budget, up to
+    ``AdaptiveReach.budget_retries`` times: a tighter budget keeps the set
+    smaller (smaller steps, more splits) before it reaches the hard part.
+    Every finished run is sound; the budget used is ``tube.log.budget`` and
+    the budgets tried are in ``log.budgets_tried``.  Domain failures and the
+    step/memory limits are not retried (a smaller budget only costs more there).
+    """
+    import dataclasses
+
+    alg, tried = options.alg, []
+    while True:
+        try:
+            run = _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=monitor, progress=progress,
+                            stopped=stopped)  # fmt: skip
+        except ReachError as exc:
+            retry = exc.term not in ("domain", "steps/memory") and len(tried) < alg.budget_retries
+            tried.append(options.alg.error_budget)
+            if not retry:
+                if len(tried) > 1:
+                    budgets = ", ".join(f"{b:g}" for b in tried)
+                    exc.args = (f"{exc.args[0]} (error budgets tried, each from the start: {budgets})",)
+                    exc.tried = {**(exc.tried or {}), "error_budgets": tried}
+                raise
+            options = dataclasses.replace(options, algorithm=dataclasses.replace(
+                options.alg, error_budget=0.5 * options.alg.error_budget))  # fmt: skip
+            if progress is not None and hasattr(progress, "reset"):
+                progress.reset()
+            continue
+        run.log.budgets_tried = np.array([*tried, options.alg.error_budget], dtype=float)
+        return run
+
+
+def _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=None, progress=None,
+              stopped=StopIteration) -> AdaptiveRun:  # fmt: skip
+    """Adaptive reach of ``model`` from ``Z0`` over the sample grid ``samples``, with one error budget.
 
     ``U`` has one row per sample interval; steps end exactly at every sample
     time.  ``monitor(js, c, G, ng)`` is called with the time-point sets of the
@@ -336,8 +363,8 @@ def run_adaptive(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=No
             if code == ak.FULL:
                 limit = _check_room(buf, gneed, max_steps, mem_limit)
                 if limit:
-                    raise _failure(model, opts, state, t, c, G, smallest, highest, len(split_log), max_splits,
-                                   horizon, limit=limit, steps=int(buf.pos[0]))  # fmt: skip
+                    raise adaptive_failure(model, opts, state, t, c, G, smallest, highest, len(split_log), max_splits,
+                                           DT_MIN_FRACTION * horizon, limit=limit, steps=int(buf.pos[0]))  # fmt: skip
                 buf.grow(gneed)
                 continue
             if code == ak.NEED_ORDER3:
@@ -377,8 +404,8 @@ def run_adaptive(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=No
                     st = state
                 else:  # halving does not lower the floor: go on over budget for a while
                     if code == ak.FAIL:
-                        raise _failure(model, opts, state, t, c, G, smallest, highest, len(split_log), max_splits,
-                                       horizon, steps=int(buf.pos[0]))  # fmt: skip
+                        raise adaptive_failure(model, opts, state, t, c, G, smallest, highest, len(split_log),
+                                               max_splits, DT_MIN_FRACTION * horizon, steps=int(buf.pos[0]))  # fmt: skip
                     task.split_after = float(t) + NO_SPLIT_SPAN * horizon
                     continue
                 for idx in (ia, ib):
@@ -391,8 +418,8 @@ def run_adaptive(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=No
                                          (at[0], at[1], hc, hG, s2.copy()), task.keep, -np.inf, *trigger,
                                          task.no_restart))  # fmt: skip
                 break
-            raise _failure(model, opts, state, t, c, G, smallest, highest, len(split_log), max_splits, horizon,
-                           steps=int(buf.pos[0]))  # fmt: skip
+            raise adaptive_failure(model, opts, state, t, c, G, smallest, highest, len(split_log), max_splits,
+                                   DT_MIN_FRACTION * horizon, steps=int(buf.pos[0]))  # fmt: skip
     seconds = time.perf_counter() - t_start
     tp_c, tp_G, ti_c, ti_G, ng_tp, ng_ti, rec, rec_err = buf.trimmed()
     log = ReachLog.from_records(rec, branches, split_log, budget, smallest, n)
@@ -444,46 +471,3 @@ def _tp_sets(buf, recs):
     for i, r in enumerate(recs):
         G[i, :, : ng[i]] = buf.tp_G[:, off[r] : off[r] + ng[i]]
     return buf.tp_c[recs].copy(), G, ng
-
-
-def _failure(model, options, state, t, c, G, smallest, highest, splits, max_splits, horizon, limit="",
-             steps=0) -> ReachError:  # fmt: skip
-    """The ReachError of a failed adaptive reach: what was tried, where it failed, what to change."""
-    from reachconf_kernels import adaptive as ak
-    from reachconf_kernels import zonotope as zk
-
-    status = int(state[ak.S_FAIL_CODE])
-    bad_state = int(state[ak.S_FAIL_STATE])
-    bad_term = int(state[ak.S_FAIL_TERM])
-    state_name = model.state_names[bad_state] if status != 1 and 0 <= bad_state < model.n else None
-    if status == 1:
-        term = "domain"
-    elif bad_term < 0:
-        term = f"abstraction error of tensor order {-bad_term}"
-    else:
-        term = _TERMS.get(bad_term, "abstraction error")
-    lo, hi = zk.interval_hull(np.ascontiguousarray(c), np.ascontiguousarray(G))
-    box = ", ".join(f"{nm} in [{a:.4g}, {b:.4g}]" for nm, a, b in zip(model.state_names, lo, hi))
-    what = _STATUS.get(status, "the step failed")
-    where = f"at t = {t:.6g} s" + (f" in state {state_name!r} through the {term}" if state_name else "")
-    tried = (f"time steps down to {smallest:.3g} s (limit {DT_MIN_FRACTION * horizon:.3g} s), tensor order up to "
-             f"{highest}, zonotope order up to {options.alg.max_order:g}, {splits} of {max_splits} splits")  # fmt: skip
-    hints = []
-    if status == 1:
-        hints.append("checking where the model is defined (the set reached a region where it is not)")
-    if splits >= max_splits:
-        hints.append(f"a larger max_splits (now {max_splits})")
-    hints.append("a smaller initial set or disturbance set W")
-    hints.append(f"a smaller error_budget (now {options.alg.error_budget:g}; smaller keeps the set tighter before "
-                 "it reaches this point)")  # fmt: skip
-    if limit:
-        hints.insert(0, "a larger AdaptiveReach max_steps or more memory, if the sets stay small")
-        msg = (f"adaptive reachability of model {model.name!r} stopped at t = {t:.6g} s: {limit}. It tried {tried}. "
-               f"The set there: {box}. Try {', '.join(hints)}.")  # fmt: skip
-    else:
-        msg = (f"adaptive reachability of model {model.name!r} could not bound the abstraction error {where} "
-               f"({what}). It tried {tried}. The set there: {box}. Try {', '.join(hints)}.")  # fmt: skip
-    info = {"smallest_step": float(smallest), "highest_tensor_order": int(highest),
-            "max_order": float(options.alg.max_order), "splits": int(splits), "max_splits": int(max_splits),
-            "steps": int(steps)}  # fmt: skip
-    return ReachError(msg, time=float(t), state=state_name, term="steps/memory" if limit else term, tried=info)

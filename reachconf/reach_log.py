@@ -53,6 +53,10 @@ class ReachLog:
         Error budget ``beta`` (1/s) the steps were held to.
     smallest_step : float
         Smallest step tried (also rejected ones).
+    budgets_tried : ndarray
+        The ``AdaptiveReach.error_budget`` of every run, the last one the run
+        kept: a run whose error could not be bounded is repeated from the
+        start with half the budget (``budget_retries``).
     """
 
     branch: np.ndarray
@@ -72,6 +76,7 @@ class ReachLog:
     split_children: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     budget: float = float("nan")
     smallest_step: float = float("nan")
+    budgets_tried: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def steps(self) -> int:
@@ -108,6 +113,10 @@ class ReachLog:
                          "its start, halved)")
         else:
             lines.append("  no splits")
+        if np.size(self.budgets_tried) > 1:
+            tried = ", ".join(f"{b:g}" for b in np.asarray(self.budgets_tried)[:-1])
+            lines.append(f"  error_budget {float(np.asarray(self.budgets_tried)[-1]):g} after the error could not be "
+                         f"bounded with {tried}")  # fmt: skip
         return "\n".join(lines)
 
     def __repr__(self):
@@ -122,6 +131,7 @@ class ReachLog:
         """Arrays for ``np.savez`` (keys prefixed ``log_``)."""
         out = {f"log_{k}": np.asarray(getattr(self, k)) for k in _STEP_FIELDS + _SPLIT_FIELDS}
         out["log_scalars"] = np.array([self.budget, self.smallest_step])
+        out["log_budgets_tried"] = np.asarray(self.budgets_tried, dtype=float)
         return out
 
     @classmethod
@@ -131,7 +141,8 @@ class ReachLog:
             return None
         kw = {k: np.asarray(data[f"log_{k}"]) for k in _STEP_FIELDS + _SPLIT_FIELDS}
         budget, smallest = (float(v) for v in np.asarray(data["log_scalars"]).reshape(-1)[:2])
-        return cls(**kw, budget=budget, smallest_step=smallest)
+        tried = np.asarray(data["log_budgets_tried"], dtype=float) if "log_budgets_tried" in data else np.zeros(0)
+        return cls(**kw, budget=budget, smallest_step=smallest, budgets_tried=tried)
 
     @classmethod
     def from_records(cls, rec, branches, split_log, budget, smallest, n) -> "ReachLog":

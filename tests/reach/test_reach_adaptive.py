@@ -71,6 +71,39 @@ def test_adaptive_failure_says_what_it_tried_and_where():
     assert e.tried["splits"] <= 2 and e.tried["smallest_step"] > 0
 
 
+def _vdp_samples(times, n=60, seed=0):
+    """``n`` Van der Pol trajectories from corners and random points of ``VDP_X0`` at ``times``."""
+    from scipy.integrate import solve_ivp
+
+    rng = np.random.default_rng(seed)
+    lo, hi = VDP_X0.lo, VDP_X0.hi
+    pts = np.vstack([rng.uniform(lo, hi, size=(n - 4, 2)), [lo, hi, [lo[0], hi[1]], [hi[0], lo[1]]]])
+    f = lambda t, z: [z[1], (1 - z[0] ** 2) * z[1] - z[0]]  # noqa: E731
+    return np.array([solve_ivp(f, (0, times[-1]), p, t_eval=times, rtol=1e-10, atol=1e-12).y.T for p in pts])
+
+
+def test_adaptive_retries_with_half_the_budget_when_the_error_cannot_be_bounded():
+    times = np.linspace(0.0, 7.0, 15)
+    once = rc.ReachOptions(algorithm=rc.AdaptiveReach(error_budget=5.0, budget_retries=0))
+    with pytest.raises(rc.ReachError, match="could not bound"):
+        rc.reach(vanderpol(), VDP_X0, times, options=once)
+    tube = rc.reach(vanderpol(), VDP_X0, times, options=rc.ReachOptions(algorithm=rc.AdaptiveReach(error_budget=5.0)))
+    assert list(tube.log.budgets_tried) == [5.0, 2.5, 1.25]  # two retries (the default), the last one kept
+    assert "after the error could not be bounded with 5, 2.5" in tube.log.summary()
+    # the kept run is sound: every sampled trajectory lies in its time-point set at every sample
+    X = _vdp_samples(times)
+    for k in range(times.size):
+        inside = np.asarray(tube.time_point_sets[k].contains(X[:, k], tol=1e-9))
+        assert inside.all(), (times[k], X[~inside, k])
+
+
+def test_adaptive_failure_after_retries_names_every_budget_tried():
+    opts = rc.ReachOptions(algorithm=rc.AdaptiveReach(error_budget=80.0, budget_retries=3))
+    with pytest.raises(rc.ReachError, match="error budgets tried, each from the start: 80, 40, 20, 10") as info:
+        rc.reach(vanderpol(), VDP_X0, 7.0, options=opts)
+    assert info.value.tried["error_budgets"] == [80.0, 40.0, 20.0, 10.0]
+
+
 def test_adaptive_stops_at_max_steps_instead_of_allocating():
     opts = rc.ReachOptions(algorithm=rc.AdaptiveReach(max_steps=30))
     with pytest.raises(rc.ReachError, match="max_steps = 30") as info:
@@ -87,7 +120,8 @@ def test_adaptive_stops_at_its_memory_share(monkeypatch):
 
 
 @pytest.mark.parametrize("kw", [{"error_budget": 0.0}, {"error_budget": float("inf")}, {"max_order": 0.5},
-                                {"max_steps": 0}, {"max_steps": 2.5}, {"max_order": 1e6}])  # fmt: skip
+                                {"max_steps": 0}, {"max_steps": 2.5}, {"max_order": 1e6}, {"budget_retries": -1},
+                                {"budget_retries": 1.5}, {"budget_retries": True}])  # fmt: skip
 def test_adaptive_bad_parameters(kw):
     with pytest.raises(rc.OptionsError, match="AdaptiveReach"):
         rc.ReachOptions(algorithm=rc.AdaptiveReach(**kw))

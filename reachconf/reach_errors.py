@@ -1,0 +1,101 @@
+"""The :class:`~reachconf.errors.ReachError` of a failed reach: what failed, where, what was tried, what to change.
+
+:func:`fixed_step_failure` for the fixed-step algorithms ("lin", "poly"),
+:func:`adaptive_failure` for ``algorithm="adaptive"`` (which also says the
+smallest step, highest tensor order, splits and error budgets it tried).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from reachconf.errors import ReachError
+
+__all__ = ["fixed_step_failure", "adaptive_failure", "STATUS", "TERMS"]
+
+#: the compiled step's status codes (``-1``: the adaptive control's own "rate grew faster than the step")
+STATUS = {
+    -1: "the error rate grew faster than smaller steps could follow: the set exploded",
+    1: "a guarded interval operation failed (division by an interval containing 0, log/sqrt of a "
+    "non-positive interval or tan across a pole)",
+    2: "the set or its error bound became NaN/inf",
+    3: "the abstraction-error bound did not converge (the set grows faster than the linearisation "
+    "can follow)",
+    4: "the abstraction error exceeded options.max_error",
+}
+#: the error terms of the step
+TERMS = {
+    0: "second-order Lagrange remainder (interval Hessian over the set)",
+    1: "quadratic term at the linearisation point (quad_map of the Hessian)",
+    2: "third-order Lagrange remainder (interval third-order tensor over the set)",
+    3: "static quadratic term of 'poly'",
+}
+
+
+def fixed_step_failure(model, options, status, step, bad_state, bad_term, t_start, dts, err, comp, splits):
+    """The ReachError of a failed fixed-step reach ("lin"/"poly"): where, which state and term, what to try."""
+    t = float(t_start[step])
+    where = f"at t = {t:.6g} s (step {step}, dt = {dts[step]:.3g} s)"
+    if status == 1:
+        guard = comp.guards[bad_state - 1] if 0 < bad_state <= len(comp.guards) else "an interval operation"
+        msg = (f"reachability of model {model.name!r} failed {where}: {guard}. The set has grown into a region "
+               f"where the model is not defined; reduce the initial set or W, or use a smaller time_step.")
+        return ReachError(msg, time=t, state=None, term="domain")
+    state = model.state_names[bad_state] if 0 <= bad_state < model.n else None
+    term = TERMS.get(bad_term, "abstraction error")
+    detail = f" in state {state!r} through the {term}" if state else ""
+    size = f"; error bound there {err[bad_state]:.3g}" if state and np.isfinite(err[bad_state]) else ""
+    hints = [f"a smaller time_step (now {dts[step]:.3g})"]
+    if options.effective_tensor_order == 2:
+        hints.append("tensor_order=3 (or algorithm='poly')")
+    hints.append(f"a larger max_splits (used {splits} of {options.effective_max_splits})")
+    hints.append("splitting the initial set, or a smaller initial set / disturbance set W")
+    msg = (f"reachable set of model {model.name!r} exploded {where}{detail}: {STATUS.get(status, '')}{size}. "
+           f"Try {', '.join(hints)}.")
+    return ReachError(msg, time=t, state=state, term=term)
+
+
+def adaptive_failure(model, options, state, t, c, G, smallest, highest, splits, max_splits, dt_min, limit="",
+                     steps=0) -> ReachError:  # fmt: skip
+    """The ReachError of a failed adaptive reach: what was tried, where it failed, what to change.
+
+    ``dt_min`` is the smallest step the run allows; ``limit`` (if any) the step or memory limit it hit.
+    """
+    from reachconf_kernels import adaptive as ak
+    from reachconf_kernels import zonotope as zk
+
+    status = int(state[ak.S_FAIL_CODE])
+    bad_state = int(state[ak.S_FAIL_STATE])
+    bad_term = int(state[ak.S_FAIL_TERM])
+    state_name = model.state_names[bad_state] if status != 1 and 0 <= bad_state < model.n else None
+    if status == 1:
+        term = "domain"
+    elif bad_term < 0:
+        term = f"abstraction error of tensor order {-bad_term}"
+    else:
+        term = TERMS.get(bad_term, "abstraction error")
+    lo, hi = zk.interval_hull(np.ascontiguousarray(c), np.ascontiguousarray(G))
+    box = ", ".join(f"{nm} in [{a:.4g}, {b:.4g}]" for nm, a, b in zip(model.state_names, lo, hi))
+    what = STATUS.get(status, "the step failed")
+    where = f"at t = {t:.6g} s" + (f" in state {state_name!r} through the {term}" if state_name else "")
+    tried = (f"time steps down to {smallest:.3g} s (limit {dt_min:.3g} s), tensor order up to "
+             f"{highest}, zonotope order up to {options.alg.max_order:g}, {splits} of {max_splits} splits")  # fmt: skip
+    hints = []
+    if status == 1:
+        hints.append("checking where the model is defined (the set reached a region where it is not)")
+    if splits >= max_splits:
+        hints.append(f"a larger max_splits (now {max_splits})")
+    hints.append("a smaller initial set or disturbance set W")
+    hints.append(f"a smaller error_budget (now {options.alg.error_budget:g}; smaller keeps the set tighter before "
+                 "it reaches this point)")  # fmt: skip
+    if limit:
+        hints.insert(0, "a larger AdaptiveReach max_steps or more memory, if the sets stay small")
+        msg = (f"adaptive reachability of model {model.name!r} stopped at t = {t:.6g} s: {limit}. It tried {tried}. "
+               f"The set there: {box}. Try {', '.join(hints)}.")  # fmt: skip
+    else:
+        msg = (f"adaptive reachability of model {model.name!r} could not bound the abstraction error {where} "
+               f"({what}). It tried {tried}. The set there: {box}. Try {', '.join(hints)}.")  # fmt: skip
+    info = {"smallest_step": float(smallest), "highest_tensor_order": int(highest),
+            "max_order": float(options.alg.max_order), "splits": int(splits), "max_splits": int(max_splits),
+            "steps": int(steps)}  # fmt: skip
+    return ReachError(msg, time=float(t), state=state_name, term="steps/memory" if limit else term, tried=info)
