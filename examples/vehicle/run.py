@@ -93,16 +93,27 @@ def trace_table(model, suite, V, select, pool, decimate=1, method="auto", method
     from reachconf.io import TestSuite
 
     cases = suite.map(lambda c: c.select(*select).decimate(decimate))
-    out = {}
-    for g, members in cases.groups().items():
+
+    def group_box(item, stop):
+        g, members = item
         try:
-            box, found = rc.minimal_trace_bounds(model, TestSuite(members, name=g), V=V, method=method,
-                                                 executor=pool, details=True)  # fmt: skip
-            out[g] = pairs(box)
-            if methods is not None:
-                methods[g] = {m: sum(f.method == m for f in found) for m in sorted({f.method for f in found})}
+            return rc.minimal_trace_bounds(model, TestSuite(members, name=g), V=V, method=method, executor=pool,
+                                           details=True)  # fmt: skip
         except rc.ReachconfError as exc:
-            out[g] = f"not verified: {exc}"
+            return exc
+
+    # every group at once on the run's pool (one thread per group submitting its cases): a group alone has
+    # 5 cases for 2 workers and leaves one idle while the other finishes
+    groups = list(cases.groups().items())
+    out = {}
+    for (g, _), res in zip(groups, pool.each(group_box, groups)):
+        if isinstance(res, Exception):
+            out[g] = f"not verified: {res}"
+            continue
+        box, found = res
+        out[g] = pairs(box)
+        if methods is not None:
+            methods[g] = {m: sum(f.method == m for f in found) for m in sorted({f.method for f in found})}
     boxes = [np.array(b) for b in out.values() if not isinstance(b, str)]
     key = "all" if len(boxes) == len(out) else "hull_of_verified_groups"
     if boxes:
