@@ -53,7 +53,16 @@ from reachconf.diagnose.howfar import (
 from reachconf.diagnose.locate import locate_gap
 from reachconf.diagnose.probes import band_shares, separating_probe
 from reachconf.diagnose.report import GapReport
-from reachconf.diagnose.select import cross_fit, decide, fold_assignment, full_fit, paired_test, window_clusters
+from reachconf.diagnose.select import (
+    cross_fit,
+    decide,
+    fold_assignment,
+    fold_start,
+    full_fit,
+    paired_test,
+    window_clusters,
+)
+from reachconf.diagnose.separable import mimic_loss
 from reachconf.diagnose.sparse import feature_dictionary, sparse_features
 from reachconf.diagnose.verdict import decision_record, effect_entries, model_entry, verdict_text
 from reachconf.errors import ConformanceError, OptionsError
@@ -227,18 +236,34 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         interrupted = True
     base_full, base_sc, models, screen = state["base_full"], state["base"], state["models"], state["screen"]
     timings["which"] = time.process_time() - c_start - sum(timings.values())
-    decision = decide(base_sc, models, clusters, options)
+    fulls, mimics = {}, {}
+
+    def full(m):
+        if m.label not in fulls:
+            fulls[m.label] = full_fit(model, m, prepared, sigma, fit_names, options, cache)
+        return fulls[m.label]
+
+    def mimic(a, b):  # can the data separate b from the chosen a? (select.decide, separable.mimic_loss)
+        res = mimic_loss(model, full(a), b.candidate, prepared, sigma, fit_names, options, cache, start=fold_start(b))
+        mimics[b.label] = res
+        return res["mimic_loss"]
+
+    decision = decide(base_sc, models, clusters, options, mimic=mimic)
+    for label, res in mimics.items():
+        decision["identifiability"].setdefault(label, {}).update(effect_loss=res["effect_loss"],
+                                                                 mimic_params=res["params"])  # fmt: skip
     chosen = decision["chosen"]
     named, alternatives, chosen_full = [], [], None
     if chosen is not None:
-        chosen_full = full_fit(model, chosen, prepared, sigma, fit_names, options, cache)
+        chosen_full = full(chosen)
         named = effect_entries(chosen_full, options.interval, options.interval_method)
         for alt, test in decision["alternatives"]:
-            alt_full = full_fit(model, alt, prepared, sigma, fit_names, options, cache)
+            alt_full = full(alt)
             differ = sorted(chosen.candidate.keys ^ alt.candidate.keys)
             inputs = sorted({t for e, t in differ if EFFECTS.get(e) is not None and EFFECTS[e].kind == "input"})
             alternatives.append({"label": alt.label, "parts": [[e.name, t] for e, t in alt.candidate.parts],
                                  "z": test["z"], "gain": test["gain"], "differs": [list(x) for x in differ],
+                                 "identifiable": test["identifiable"], "expected_z": test.get("expected_z"),
                                  "effects": effect_entries(alt_full, options.interval, options.interval_method),
                                  "separating": separating_probe(chosen_full, alt_full, prepared, sigma),
                                  "data_band_shares": {u: band_shares(prepared, u, model) for u in inputs}})  # fmt: skip
