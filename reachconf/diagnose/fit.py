@@ -6,7 +6,9 @@ sensor noise dominates them), so every candidate is fitted and scored by
 measured (Savitzky–Golay smoothed) states every ``stride`` seconds are
 simulated without disturbances (compiled RK4, :func:`reachconf_kernels.integrate.rk4_windows`,
 all windows in one call) and compared with the measurements, each residual
-divided by the output's noise level (estimated from third differences).  The
+divided by the output's noise level (estimated from third differences) or, with
+``DiagnoseOptions.loss_scale = "residual"``, by the base model's own misfit
+level per channel (:func:`residual_scale`).  The
 base model's parameters are fitted jointly with the effect's, kept near their
 nominal values by a Gaussian prior (relative standard deviation ``prior``) and
 hard bounds, so that they cannot soak up the effect.
@@ -27,7 +29,7 @@ from reachconf_kernels.integrate import rk4_windows
 
 __all__ = ["noise_level", "PreparedCase", "prepare", "Candidate", "FitResult",
            "fit_candidate", "transformed_case", "transformed_signals", "window_residuals", "window_losses",
-           "window_counts", "prediction_cost"]
+           "window_counts", "prediction_cost", "residual_scale"]
 
 
 def noise_level(Y: np.ndarray) -> np.ndarray:
@@ -421,3 +423,31 @@ def prediction_cost(fit: FitResult, data, sigma, options: DiagnoseOptions) -> fl
     """Mean squared normalised multi-step prediction residual on ``data`` (held-out cases)."""
     r = window_residuals(fit.model, fit.candidate, fit.effect_params, data, sigma, options.substeps)
     return float(np.mean(r**2))
+
+
+def residual_scale(fit: FitResult, data, sigma, options: DiagnoseOptions) -> np.ndarray:
+    """Per-channel scale of the prediction loss from a fitted model's misfit (``loss_scale = "residual"``).
+
+    The root-mean-square multi-step prediction residual of ``fit`` on
+    ``data`` per output channel, in the outputs' units, at least ``sigma``
+    (the sensor noise).  Used as the standard deviations of the Gaussian
+    likelihood, it is the variance estimate of a two-step (feasible)
+    weighted least squares: a channel counts by its own misfit level.
+
+    Parameters
+    ----------
+    fit : FitResult
+        The fitted (base) model.
+    data : list of PreparedCase
+    sigma : ndarray, shape (p,)
+        The sensor noise per output (the floor and the unit of the residuals).
+    options : DiagnoseOptions
+
+    Returns
+    -------
+    ndarray, shape (p,)
+    """
+    sigma = np.asarray(sigma, dtype=float)
+    r = window_residuals(fit.model, fit.candidate, fit.effect_params, data, sigma, options.substeps)
+    rms = np.sqrt(np.mean(r.reshape(-1, sigma.size) ** 2, axis=0)) * sigma
+    return np.maximum(np.where(np.isfinite(rms), rms, sigma), sigma)

@@ -9,7 +9,7 @@ import numpy as np
 from reachconf.checks import check_field_types
 from reachconf.errors import OptionsError
 
-__all__ = ["DiagnoseOptions", "INTERVAL_METHODS"]
+__all__ = ["DiagnoseOptions", "INTERVAL_METHODS", "LOSS_SCALES"]
 
 
 @dataclass(frozen=True)
@@ -83,6 +83,19 @@ class DiagnoseOptions:
         Number of held-out cases whose minimal boxes are computed before/after.
     tube_horizon : float, default 2.0
         Horizon (s) of the before/after reach tubes of one held-out case (0: none).
+    loss_scale : {"sensor", "residual"}, default "sensor"
+        Scale of each output channel in the prediction loss (the standard
+        deviation of the Gaussian likelihood that every fit minimises and
+        every held-out comparison sums).  "sensor": the sensor noise
+        estimated from third differences of the data — right when the
+        prediction errors of the correct model are measurement noise.
+        "residual": the root-mean-square multi-step prediction residual of the
+        refitted base model per channel (at least the sensor noise), after
+        which the base model is refitted with it (a two-step weighted least
+        squares): each channel counts by its own misfit level, so a channel
+        whose predictions carry large errors no effect in the library explains
+        (e.g. a velocity integrated from a noisy measured acceleration) does
+        not drown the others.  See :func:`reachconf.diagnose.fit.residual_scale`.
     """
 
     window: float = 1.0
@@ -105,6 +118,7 @@ class DiagnoseOptions:
     box_segment: float = 2.0
     box_cases: int = 2
     tube_horizon: float = 2.0
+    loss_scale: str = "sensor"
 
     def __post_init__(self):
         check_field_types(self)
@@ -135,7 +149,11 @@ class DiagnoseOptions:
                                f"got {self.interval_method!r}")  # fmt: skip
         if not (isinstance(self.tube_horizon, (int, float)) and self.tube_horizon >= 0):
             raise OptionsError(f"DiagnoseOptions.tube_horizon must be >= 0, got {self.tube_horizon!r}")
+        if self.loss_scale not in LOSS_SCALES:
+            raise OptionsError(f"DiagnoseOptions.loss_scale must be one of {LOSS_SCALES}, got {self.loss_scale!r}")
 
 
 #: parameter interval methods (:attr:`DiagnoseOptions.interval_method`)
 INTERVAL_METHODS = ("spread", "case", "group")
+#: per-channel scales of the prediction loss (:attr:`DiagnoseOptions.loss_scale`)
+LOSS_SCALES = ("sensor", "residual")

@@ -38,7 +38,7 @@ from tqdm.auto import tqdm
 
 from reachconf.conformance.trace import trace_disturbances
 from reachconf.diagnose.effects import EFFECTS, Effect
-from reachconf.diagnose.fit import Candidate, fit_candidate, noise_level, prepare, window_counts
+from reachconf.diagnose.fit import Candidate, fit_candidate, noise_level, prepare, residual_scale, window_counts
 from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.diagnose.howfar import (
     actuator_vs_process,
@@ -53,7 +53,16 @@ from reachconf.diagnose.howfar import (
 from reachconf.diagnose.locate import locate_gap
 from reachconf.diagnose.probes import band_shares, separating_probe
 from reachconf.diagnose.report import GapReport
-from reachconf.diagnose.select import cross_fit, decide, fold_assignment, full_fit, paired_test, window_clusters
+from reachconf.diagnose.select import (
+    cross_fit,
+    decide,
+    fold_assignment,
+    fold_start,
+    full_fit,
+    paired_test,
+    window_clusters,
+)
+from reachconf.diagnose.separable import mimic_loss
 from reachconf.diagnose.sparse import feature_dictionary, sparse_features
 from reachconf.diagnose.verdict import decision_record, effect_entries, model_entry, verdict_text
 from reachconf.errors import ConformanceError, OptionsError
@@ -117,8 +126,14 @@ def _start(fits, base_params=None):
 
 def _which(model, prepared, candidates, folds, clusters, sigma, fit_names, options, cache, bar, state):
     """Base, screening, cross-fitted singles and pairs, into ``state`` (kept when interrupted):
-    ``base_full``, ``base`` (scored), ``models`` (scored singles and pairs), ``screen`` (screening fits)."""
+    ``base_full``, ``base`` (scored), ``models`` (scored singles and pairs), ``screen`` (screening fits),
+    ``scale`` (the loss scale per channel: ``sigma`` or, with ``loss_scale="residual"``, the base's misfit)."""
     base_full = fit_candidate(model, Candidate(()), prepared, sigma, fit_names, options, cache)
+    if options.loss_scale == "residual":
+        sigma = residual_scale(base_full, prepared, sigma, options)
+        base_full = fit_candidate(model, Candidate(()), prepared, sigma, fit_names, options, cache,
+                                  start=dict(base_full.base_params))  # fmt: skip
+    state["scale"] = sigma
     state["base_full"] = base_full
     state["base"] = cross_fit(model, Candidate(()), prepared, folds, sigma, fit_names, options, cache,
                               start=dict(base_full.base_params))  # fmt: skip
@@ -226,19 +241,36 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
             raise
         interrupted = True
     base_full, base_sc, models, screen = state["base_full"], state["base"], state["models"], state["screen"]
+    scale = state["scale"]  # the loss scale of every fit (sigma: the sensor noise, for V and the probes)
     timings["which"] = time.process_time() - c_start - sum(timings.values())
-    decision = decide(base_sc, models, clusters, options)
+    fulls, mimics = {}, {}
+
+    def full(m):
+        if m.label not in fulls:
+            fulls[m.label] = full_fit(model, m, prepared, scale, fit_names, options, cache)
+        return fulls[m.label]
+
+    def mimic(a, b):  # can the data separate b from the chosen a? (select.decide, separable.mimic_loss)
+        res = mimic_loss(model, full(a), b.candidate, prepared, scale, fit_names, options, cache, start=fold_start(b))
+        mimics[b.label] = res
+        return res["mimic_loss"]
+
+    decision = decide(base_sc, models, clusters, options, mimic=mimic)
+    for label, res in mimics.items():
+        decision["identifiability"].setdefault(label, {}).update(effect_loss=res["effect_loss"],
+                                                                 mimic_params=res["params"])  # fmt: skip
     chosen = decision["chosen"]
     named, alternatives, chosen_full = [], [], None
     if chosen is not None:
-        chosen_full = full_fit(model, chosen, prepared, sigma, fit_names, options, cache)
+        chosen_full = full(chosen)
         named = effect_entries(chosen_full, options.interval, options.interval_method)
         for alt, test in decision["alternatives"]:
-            alt_full = full_fit(model, alt, prepared, sigma, fit_names, options, cache)
+            alt_full = full(alt)
             differ = sorted(chosen.candidate.keys ^ alt.candidate.keys)
             inputs = sorted({t for e, t in differ if EFFECTS.get(e) is not None and EFFECTS[e].kind == "input"})
             alternatives.append({"label": alt.label, "parts": [[e.name, t] for e, t in alt.candidate.parts],
                                  "z": test["z"], "gain": test["gain"], "differs": [list(x) for x in differ],
+                                 "identifiable": test["identifiable"], "expected_z": test.get("expected_z"),
                                  "effects": effect_entries(alt_full, options.interval, options.interval_method),
                                  "separating": separating_probe(chosen_full, alt_full, prepared, sigma),
                                  "data_band_shares": {u: band_shares(prepared, u, model) for u in inputs}})  # fmt: skip
@@ -327,6 +359,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
                  "nominal": {k2: float(model.params[k2]) for k2 in fit_names}, "held_out_loss": base_sc.total,
                  "box": {ch: [float(a), float(b)] for ch, a, b in zip(channels, base_box[0], base_box[1])},
                  "V": [[float(a), float(b)] for a, b in zip(V.lo, V.hi)], "noise_sigma": sigma.tolist(),
+                 "loss_scale": {"method": options.loss_scale, "per_output": np.asarray(scale).tolist()},
                  "folds": k_folds, "clusters": int(clusters.max()) + 1 if clusters.size else 0,
                  "cpu_seconds_by_step": timings}  # fmt: skip
     split = {"train": [d.name for d in train], "test": [d.name for d in test],

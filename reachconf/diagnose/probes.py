@@ -12,6 +12,10 @@ sensor noise) is reported:
   in the data);
 * for each input, a step up and a step down by twice its standard deviation,
   ramped at that rate;
+* for each input, a doublet: up by twice its standard deviation for half the
+  probe, then down by as much (for an acceleration: accelerate, then brake —
+  a speed sweep that separates speed-dependent effects and scales from
+  offsets);
 * for each state that the data hold far from zero and nearly constant
   (e.g. a speed), the operating point moved to 0.5x and 1.5x its median.
 
@@ -101,6 +105,17 @@ def _probes(model, data, horizon):
             out.append(({"kind": "step", "input": name, "size": float(sign * amp[j]), "rate": float(rate[j]),
                          "text": f"a step of {sign * amp[j]:+.3g} on {name} (at the rate {rate[j]:.3g}/s)"}, None,
                         Up))  # fmt: skip
+        Up = np.tile(u0, (t.size, 1))
+        half = 0.5 * horizon
+        if np.isfinite(rate[j]) and rate[j] > 0:
+            up = np.clip((t - 0.25) * rate[j], 0.0, amp[j])
+            down = np.clip((t - half) * rate[j], 0.0, 2 * amp[j])
+            Up[:, j] += up - down
+        else:
+            Up[:, j] += np.where(t < half, amp[j], -amp[j])
+        out.append(({"kind": "doublet", "input": name, "size": float(amp[j]), "rate": float(rate[j]),
+                     "text": f"a doublet on {name}: {amp[j]:+.3g} for {half:g} s, then {-amp[j]:+.3g} "
+                             f"(at the rate {rate[j]:.3g}/s)"}, None, Up))  # fmt: skip
     Ys = np.vstack([d.Ys[d.starts] for d in data])
     med, spread = np.median(Ys, axis=0), np.std(Ys, axis=0)
     for i, name in enumerate(model.output_names):

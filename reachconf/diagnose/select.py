@@ -34,7 +34,8 @@ import numpy as np
 
 from reachconf.diagnose.fit import Candidate, FitResult, fit_candidate, window_losses
 
-__all__ = ["Scored", "fold_assignment", "window_clusters", "paired_test", "cross_fit", "decide", "full_fit"]
+__all__ = ["Scored", "fold_assignment", "window_clusters", "paired_test", "cross_fit", "decide", "full_fit",
+           "fold_start"]
 
 
 @dataclass
@@ -100,7 +101,7 @@ def paired_test(losses_a, losses_b, clusters) -> dict:
     """Does model ``a`` predict the held-out windows better than ``b``?
 
     Returns ``{"gain": share of b's held-out loss that a removes, "z": cluster-robust z statistic,
-    "clusters": number of clusters}``; ``z > 0`` favours ``a``.
+    "se": its standard error (loss units), "clusters": number of clusters}``; ``z > 0`` favours ``a``.
     """
     D = np.bincount(clusters, weights=np.asarray(losses_b) - np.asarray(losses_a))
     C = D.size
@@ -108,7 +109,7 @@ def paired_test(losses_a, losses_b, clusters) -> dict:
     var = C / (C - 1) * float(np.sum((D - D.mean()) ** 2)) if C > 1 else 0.0
     z = G / np.sqrt(var) if var > 0 else (np.inf if G > 0 else (-np.inf if G < 0 else 0.0))
     total_b = float(np.sum(losses_b))
-    return {"gain": G / total_b if total_b > 0 else 0.0, "z": float(z), "clusters": int(C)}
+    return {"gain": G / total_b if total_b > 0 else 0.0, "z": float(z), "se": float(np.sqrt(var)), "clusters": int(C)}
 
 
 def cross_fit(base_model, cand: Candidate, data, folds, sigma, fit_names, options, cache, start=None) -> Scored:
@@ -154,13 +155,32 @@ def _admissible(m: Scored, base: Scored, singles: dict, clusters, options) -> tu
     return bool(ok), tests
 
 
-def decide(base: Scored, models: list, clusters, options) -> dict:
+def decide(base: Scored, models: list, clusters, options, mimic=None) -> dict:
     """The naming rule (module docstring) on scored models.
 
-    Returns a dict: ``status`` ("named", "indistinguishable" or "none"),
-    ``chosen`` (the chosen :class:`Scored` or None), ``alternatives`` (list of
-    ``(Scored, test)``), ``tests`` (label -> admissibility tests),
-    ``admissible`` (labels), ``best`` (the lowest-loss model, admissible or not).
+    Parameters
+    ----------
+    base : Scored
+    models : list of Scored
+    clusters : ndarray
+        Cluster id of every window (:func:`window_clusters`).
+    options : DiagnoseOptions
+    mimic : callable, optional
+        ``mimic(chosen, other) -> float or None``: the loss (noise units, all
+        windows) that ``other`` refitted to ``chosen``'s predictions cannot
+        remove (:func:`reachconf.diagnose.separable.mimic_loss`); None: not
+        checked.  Without it, the held-out test alone rules alternatives out.
+
+    Returns
+    -------
+    dict
+        ``status`` ("named", "indistinguishable" or "none"), ``chosen`` (the
+        chosen :class:`Scored` or None), ``alternatives`` (list of ``(Scored,
+        test)``; ``test["identifiable"]`` is False for those the held-out test
+        ruled out but the data cannot separate), ``tests`` (label ->
+        admissibility tests), ``admissible`` (labels), ``best`` (the
+        lowest-loss model, admissible or not), ``identifiability`` (label ->
+        ``{"mimic_loss", "expected_z", "z"}`` of every checked alternative).
     """
     singles = {m.candidate.keys: m for m in models if len(m.candidate.keys) == 1}
     tests, admissible = {}, []
@@ -172,9 +192,10 @@ def decide(base: Scored, models: list, clusters, options) -> dict:
     ranked = sorted(models, key=lambda m: m.total)
     best = ranked[0] if ranked else None
     if not admissible:
-        return {"status": "none", "chosen": None, "alternatives": [], "tests": tests, "admissible": [], "best": best}
+        return {"status": "none", "chosen": None, "alternatives": [], "tests": tests, "admissible": [], "best": best,
+                "identifiability": {}}  # fmt: skip
     chosen = min(admissible, key=lambda m: m.total)
-    alternatives = []
+    alternatives, checked = [], {}
     for m in sorted(admissible, key=lambda m: m.total):
         if m is chosen:
             continue
@@ -182,11 +203,32 @@ def decide(base: Scored, models: list, clusters, options) -> dict:
         if a <= b or b <= a:
             continue  # nested: decided by admissibility
         t = paired_test(chosen.losses, m.losses, clusters)
+        t["identifiable"] = True
         if t["z"] < options.z_separate:
+            alternatives.append((m, t))
+            continue
+        D = mimic(chosen, m) if mimic is not None else None
+        if D is None:
+            continue
+        expected = float(D / t["se"]) if t["se"] > 0 else (np.inf if D > 0 else 0.0)
+        checked[m.label] = {"mimic_loss": float(D), "expected_z": expected, "z": t["z"]}
+        if expected < options.z_separate:  # the data cannot show the difference even if the chosen model were right
+            t.update(identifiable=False, mimic_loss=float(D), expected_z=expected)
             alternatives.append((m, t))
     return {"status": "indistinguishable" if alternatives else "named", "chosen": chosen,
             "alternatives": alternatives, "tests": tests, "admissible": [m.label for m in admissible],
-            "best": best}  # fmt: skip
+            "best": best, "identifiability": checked}  # fmt: skip
+
+
+def fold_start(scored: Scored) -> dict:
+    """Starting values from the fold fits of ``scored``: mean base and effect parameters."""
+    start = {}
+    for f in scored.folds:
+        for key, th in f.effect_params.items():
+            start.setdefault(key, []).append(th)
+        for n, v in f.base_params.items():
+            start.setdefault(n, []).append(v)
+    return {k: (tuple(np.mean(v, axis=0)) if isinstance(k, tuple) else float(np.mean(v))) for k, v in start.items()}
 
 
 def full_fit(base_model, scored: Scored, data, sigma, fit_names, options, cache, spread: bool = True) -> FitResult:
@@ -195,13 +237,7 @@ def full_fit(base_model, scored: Scored, data, sigma, fit_names, options, cache,
     With ``spread``, it is also fitted on each group of cases alone (on each
     case when there are fewer than three groups): ``FitResult.spread``.
     """
-    start = {}
-    for f in scored.folds:
-        for key, th in f.effect_params.items():
-            start.setdefault(key, []).append(th)
-        for n, v in f.base_params.items():
-            start.setdefault(n, []).append(v)
-    start = {k: (tuple(np.mean(v, axis=0)) if isinstance(k, tuple) else float(np.mean(v))) for k, v in start.items()}
+    start = fold_start(scored)
     fit = fit_candidate(base_model, scored.candidate, data, sigma, fit_names, options, cache, start=start)
     if spread:
         groups = {}

@@ -74,6 +74,7 @@ def decision_record(decision, named, alternatives, options) -> dict:
                           "interval_method": options.interval_method}}  # fmt: skip
     if chosen is not None:
         rec["tests"] = decision["tests"].get(chosen.label, [])
+    rec["identifiability"] = decision.get("identifiability", {})
     return rec
 
 
@@ -105,8 +106,16 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
     options_text = [" + ".join(_fmt_effect(e) for e in own) or record["model"]]
     for a in alts:
         options_text.append(a["label"])
-    text += (f"the data cannot tell {' from '.join(options_text)} apart (held-out z = "
-             + ", ".join(f"{a['z']:.1f}" for a in alts) + f" < {record['thresholds']['z_separate']:g})")
+    zs = record["thresholds"]["z_separate"]
+    why = []
+    for a in alts:
+        if a.get("identifiable", True):
+            why.append(f"{a['label']}: held-out z = {a['z']:.1f} < {zs:g}")
+        else:
+            why.append(f"{a['label']}: refitted to the named model's predictions it reproduces them on these "
+                       f"maneuvers up to an expected held-out z of {a['expected_z']:.1f} < {zs:g}, so the observed "
+                       f"z = {a['z']:.1f} does not come from the difference of the two effects")  # fmt: skip
+    text += f"the data cannot tell {' from '.join(options_text)} apart ({'; '.join(why)})"
     seps = [a["separating"] for a in alts if a.get("separating")]
     if seps:
         s = seps[0]

@@ -26,6 +26,7 @@ def _check(name, nominal):
     return report
 
 
+@pytest.mark.slow  # 40 s; the fast test_protocol_smoke_two_effects diagnoses a yaw-offset vehicle suite the same way
 def test_yaw_sensor_offset_is_named_with_its_size(nominal):
     report = _check("yaw_offset", nominal)
     assert report.before_after["W_volume_shrink"] > 2.0  # the offset needs a large yaw-acceleration disturbance
@@ -83,6 +84,8 @@ def test_protocol_smoke_two_effects(tmp_path, nominal):
         assert r["judge"]["status"] == r["decision"]["status"] and r["judge"]["outcome"] != "none named", r["verdict"]
         assert (tmp_path / "suites" / s.name / "spec.json").exists() and (tmp_path / "results" / f"{s.name}.npz").exists()
     assert rows[offset]["judge"]["outcome"] == "all named", rows[offset]["verdict"]  # an offset: even on two runs
+    (size,) = rows[offset]["judge"]["params"]  # ... with its size
+    assert abs(size["relative_error"]) < 0.1, size
     again = protocol_eval.diagnose_job((specs[0], str(tmp_path), nominal, FIT, opts, False))
     assert again["cpu_seconds"] == rows[0]["cpu_seconds"]  # read back, not recomputed
     choice = protocol_eval.choose_thresholds(rows, tmp_path)
