@@ -20,9 +20,13 @@ CANDIDATES = (("tire_fiala", "c_f"), ("tire_fiala", "c_r"), ("tire_fiala", "axle
 FIT = ("J_z", "c_f", "c_r")
 
 
-def run_diagnosis(model, suite, V, seed=0, progress=False, effects=CANDIDATES):
-    """The :class:`reachconf.diagnose.GapReport` of ``model`` on ``suite`` with :data:`CANDIDATES`."""
-    return rc.diagnose(model, suite, effects=list(effects), fit_params=FIT, V=V, seed=seed, progress=progress)
+def run_diagnosis(model, suite, V, seed=0, progress=False, effects=CANDIDATES, options=None):
+    """The :class:`reachconf.diagnose.GapReport` of ``model`` on ``suite`` with :data:`CANDIDATES`.
+
+    ``options``: a :class:`reachconf.diagnose.DiagnoseOptions` (default: the library's defaults).
+    """
+    return rc.diagnose(model, suite, effects=list(effects), fit_params=FIT, V=V, seed=seed, progress=progress,
+                       options=options)  # fmt: skip
 
 
 def named_model(model, report):

@@ -16,16 +16,41 @@ name               injected into the recorded signals                           
 
 :func:`inject` works on the columns of :func:`data.read_run` before the run
 is cut into cases, so the injected effect is continuous across cases.
+:func:`judge` checks a diagnosis of an injected run against the truth, sized
+relative to the clean run's own fit of the same effect (the real car has
+biases and delays of its own).  As a command, the clean run and every
+injection are diagnosed and judged::
+
+    python examples/realcar/withheld.py --data ../shared/data/realcar --out DIR [--loss-scale residual]
+        [--only yaw_bias ax_scale] [--value yaw_bias=0.02] [--stop 120] [--signal-only]
+
+writes ``DIR/withheld.json`` and ``DIR/withheld.md``.
 """
 
 from __future__ import annotations
 
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
 import numpy as np
+
+if str(Path(__file__).resolve().parent) not in sys.path:  # data.py next to this file
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 #: name -> (effect, target, parameter) the diagnosis should report
 INJECTIONS = {"dead_time": ("dead_time", "delta", "T"), "lag": ("actuator_lag", "delta", "tau"),
               "steer_offset": ("input_offset", "delta", "c"), "yaw_bias": ("output_offset", "omega", "c"),
               "ax_scale": ("input_scale", "ax", "k")}  # fmt: skip
+#: the injected values of the command (the tests use others)
+VALUES = {"dead_time": 0.06, "lag": 0.08, "steer_offset": 0.012, "yaw_bias": 0.025, "ax_scale": 0.85}
+#: scale effects are judged multiplicatively (k_injected vs k_found / k_clean), the others additively
+SCALES = ("input_scale",)
+#: the effects that act on the recorded signals only (no tyre candidates: no model code to generate)
+SIGNAL_CANDIDATES = (("dead_time", "delta"), ("actuator_lag", "delta"), ("input_offset", "delta"),
+                     ("input_scale", "ax"), ("output_offset", "omega"), ("output_offset", "vy"))  # fmt: skip
 
 
 def lag_request(t, y, tau):
@@ -52,8 +77,14 @@ def inject(cols, name, value):
     """
     if name not in INJECTIONS:
         raise ValueError(f"unknown injection {name!r}; known: {sorted(INJECTIONS)}")
+    from data import repair_glitches
+
     out = {k: np.array(v, float) for k, v in cols.items()}
     t = out["t"]
+    # the truth is the repaired recording: a lag's inverse would blow the four one-sample glitches of the
+    # steering record up into multi-sample spikes that the suite's glitch repair no longer recognises
+    out["delta"], _ = repair_glitches(cols["delta"])
+    cols = {**cols, "delta": out["delta"]}
     if name == "dead_time":
         out["delta"] = np.interp(t + value, t, cols["delta"])
     elif name == "lag":
@@ -66,3 +97,105 @@ def inject(cols, name, value):
         out["ax"] = cols["ax"] / value
     effect, target, param = INJECTIONS[name]
     return out, {"effect": effect, "target": target, "params": {param: float(value)}}
+
+
+def clean_value(clean, effect, target, param):
+    """The clean run's own fit of ``effect(target)`` alone (held-out folds' mean, else its screening fit)."""
+    label = f"{effect}({target})"
+    for e in clean.ranked_effects:
+        if e.get("label") == label and param in e.get("params", {}):
+            return float(e["params"][param])
+    raise KeyError(f"the clean diagnosis has no fit of {label}")
+
+
+def judge(report, clean, truth, tolerance=0.3) -> dict:
+    """Is the injected effect named first and sized within ``tolerance`` relative to the clean run?
+
+    Size: how far the named parameter moved from the clean run's fit of the
+    same effect (``found - clean``), against the injected value; for a scale,
+    ``found / clean - 1`` against ``k - 1``.
+    """
+    eff, tgt = truth["effect"], truth["target"]
+    (param, size), = truth["params"].items()
+    named = [(e["effect"], e["target"]) for e in report.named]
+    first = bool(named) and named[0] == (eff, tgt)
+    ref = clean_value(clean, eff, tgt, param)
+    entry = next((e for e in report.named if (e["effect"], e["target"]) == (eff, tgt)), None)
+    found = float(entry["params"][param]) if entry else clean_value(report, eff, tgt, param)
+    multiplicative = eff in SCALES
+    moved = found / ref - 1 if multiplicative else found - ref
+    want = size - 1 if multiplicative else size
+    error = (moved - want) / abs(want)
+    rank = next((i + 1 for i, e in enumerate(e for e in report.ranked_effects if e.get("held_out_loss") is not None)
+                 if (eff, tgt) in {tuple(p) for p in e.get("parts", [])}), None)  # fmt: skip
+    return {"truth": f"{eff}({tgt}) {param} = {size:g}", "status": report.decision.get("status"),
+            "named": " + ".join(f"{e}({t})" for e, t in named) or "none", "named_first": first,
+            "from_named_model": entry is not None, "found": found, "clean": ref, "moved": moved, "injected": want,
+            "relative_error": error, "sized": first and abs(error) <= tolerance, "best_rank": rank,
+            "verdict": report.verdict}  # fmt: skip
+
+
+def main(argv=None):
+    here = Path(__file__).resolve().parent
+    from data import make_suite, noise_V, read_run
+    from diagnosis import CANDIDATES, run_diagnosis
+
+    import reachconf as rc
+    from reachconf.io import atomic_write, json_text
+    from reachconf.models import single_track
+
+    ap = argparse.ArgumentParser(description="withheld effects injected into the real car's recording")
+    ap.add_argument("--data", default=str(here.parents[2].parent / "shared" / "data" / "realcar"))
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--only", nargs="*", choices=sorted(INJECTIONS), default=list(INJECTIONS))
+    ap.add_argument("--value", action="append", default=[], help="NAME=VALUE: another injected value")
+    ap.add_argument("--loss-scale", default="sensor", choices=("sensor", "residual"))
+    ap.add_argument("--stop", type=float, default=None, help="only the first STOP seconds of the run")
+    ap.add_argument("--signal-only", action="store_true", help="signal candidates only (no tyre models)")
+    args = ap.parse_args(argv)
+    values = dict(VALUES)
+    for item in args.value:
+        k, v = item.split("=")
+        values[k] = float(v)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    cols = read_run(args.data)
+    stop = None if args.stop is None else cols["t"][0] + args.stop
+    half = np.array([h for _, h in noise_V(cols).values()])
+    V = rc.Interval(-half, half)
+    opts = rc.DiagnoseOptions(loss_scale=args.loss_scale)
+    effects = SIGNAL_CANDIDATES if args.signal_only else CANDIDATES
+
+    def diag(c):
+        w, cpu = time.perf_counter(), time.process_time()
+        rep = run_diagnosis(single_track(), make_suite(c, stop=stop), V, effects=effects, options=opts)
+        return rep, time.perf_counter() - w, time.process_time() - cpu
+
+    clean, w, cpu = diag(cols)
+    clean.to_json(out / "clean.json")
+    rows = {"clean": {"verdict": clean.verdict, "wall": w, "cpu": cpu, "loss_scale": clean.base.get("loss_scale")}}
+    print(f"clean ({w:.0f} s wall, {cpu:.0f} s CPU): {clean.verdict}", flush=True)
+    for name in args.only:
+        inj, truth = inject(cols, name, values[name])
+        rep, w, cpu = diag(inj)
+        rep.to_json(out / f"{name}.json")
+        rows[name] = {**judge(rep, clean, truth), "wall": w, "cpu": cpu}
+        r = rows[name]
+        print(f"{name}: named {r['named']} (first: {r['named_first']}), moved {r['moved']:.4g} vs {r['injected']:.4g} "
+              f"({100 * r['relative_error']:+.0f} %), best rank {r['best_rank']} ({w:.0f} s wall, {cpu:.0f} s CPU)",
+              flush=True)  # fmt: skip
+    result = {"loss_scale": args.loss_scale, "stop": args.stop, "signal_only": args.signal_only, "values": values,
+              "rows": rows}  # fmt: skip
+    atomic_write(out / "withheld.json", json_text(result))
+    lines = [f"# Injected effects (loss_scale = {args.loss_scale})", "",
+             "| injected | named | first | moved / injected | error | best rank |", "|---|---|---|---|---|---|"]
+    for name in args.only:
+        r = rows[name]
+        lines.append(f"| {r['truth']} | {r['named']} | {r['named_first']} | {r['moved']:.4g} / {r['injected']:.4g} "
+                     f"| {100 * r['relative_error']:+.0f} % | {r['best_rank']} |")  # fmt: skip
+    atomic_write(out / "withheld.md", "\n".join(lines) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -192,57 +192,136 @@ def test_injections_change_what_the_model_is_given_and_report_the_truth():
         w.inject(cols, "gravity", 1.0)
 
 
-@pytest.fixture(scope="module")
-def clean_diagnosis():
-    """The diagnosis of the clean run (the reference the injected effects are sized against)."""
+def _realcar_modules():
+    """The example's data, diagnosis and withheld modules (examples/realcar on sys.path)."""
     import sys
 
     from conftest import REPO_ROOT
 
-    sys.path.insert(0, str(REPO_ROOT / "examples" / "realcar"))
-    from data import make_suite, noise_V, read_run
-    from diagnosis import run_diagnosis
+    folder = str(REPO_ROOT / "examples" / "realcar")
+    if folder not in sys.path:
+        sys.path.insert(0, folder)
+    import data
+    import diagnosis
+    import withheld
 
+    return data, diagnosis, withheld
+
+
+def _V(data, cols):
     import reachconf as rc
+
+    half = np.array([h for _, h in data.noise_V(cols).values()])
+    return rc.Interval(-half, half)
+
+
+#: the default checks: the first SHORT_SECONDS of the run (12 cases) with the signal candidates only
+#: (the tyre candidates need minutes of code generation on a fresh cache; the slow checks have them all)
+SHORT_SECONDS = 120.0
+
+
+@pytest.fixture(scope="module")
+def short_clean():
+    """The clean first 120 s diagnosed with the signal candidates (the reference the injections are sized against)."""
     from reachconf.models import single_track
 
-    cols = read_run(REAL)
-    half = np.array([h for _, h in noise_V(cols).values()])
-    V = rc.Interval(-half, half)
-    return cols, V, run_diagnosis(single_track(), make_suite(cols), V)
+    data, diagnosis, withheld = _realcar_modules()
+    cols = data.read_run(REAL)
+    stop = cols["t"][0] + SHORT_SECONDS
+    V = _V(data, cols)
+    report = diagnosis.run_diagnosis(single_track(), data.make_suite(cols, stop=stop), V,
+                                     effects=withheld.SIGNAL_CANDIDATES)  # fmt: skip
+    return cols, stop, V, report
 
 
-def _fitted(report, effect, target):
-    """The parameter of (effect, target) fitted alone (the one-effect model of the ranking)."""
-    label = f"{effect}({target})"
-    e = next(e for e in report.ranked_effects if e.get("label") == label and e.get("params_by_effect"))
-    return next(iter(e["params_by_effect"][label].values()))
+@needs_data
+@pytest.mark.parametrize("name, value", [("steer_offset", 0.015), ("ax_scale", 0.8)])
+def test_injected_effect_on_a_short_stretch_is_named_first_and_sized(short_clean, name, value):
+    """Measured (120 s, 6 signal candidates, default options): steering offset 0.015 rad and ax scale 0.8 are
+    named first and sized to within a few per cent of the truth relative to the clean fit."""
+    from reachconf.models import single_track
+
+    data, diagnosis, withheld = _realcar_modules()
+    cols, stop, V, clean = short_clean
+    inj, truth = withheld.inject(cols, name, value)
+    report = diagnosis.run_diagnosis(single_track(), data.make_suite(inj, stop=stop), V,
+                                     effects=withheld.SIGNAL_CANDIDATES)  # fmt: skip
+    j = withheld.judge(report, clean, truth)
+    assert j["named_first"], j["verdict"]
+    assert j["sized"], j
+    assert abs(j["relative_error"]) <= 0.3
+    # the clean stretch names nothing of the kind: the injection made the difference
+    assert (truth["effect"], truth["target"]) not in {(e["effect"], e["target"]) for e in clean.named}
+
+
+def test_judge_sizes_offsets_additively_and_scales_relative_to_the_clean_fit():
+    _, _, withheld = _realcar_modules()
+
+    class Rep:
+        def __init__(self, named, ranked, status="named"):
+            self.named, self.ranked_effects, self.verdict = named, ranked, "v"
+            self.decision = {"status": status}
+
+    clean = Rep([], [{"label": "input_offset(delta)", "params": {"c": 0.002}},
+                     {"label": "input_scale(ax)", "params": {"k": 0.95}}], "none")  # fmt: skip
+    found = Rep([{"effect": "input_offset", "target": "delta", "params": {"c": 0.0135}}],
+                [{"label": "input_offset(delta)", "parts": [["input_offset", "delta"]], "held_out_loss": 1.0,
+                  "params": {"c": 0.0135}}])  # fmt: skip
+    j = withheld.judge(found, clean, {"effect": "input_offset", "target": "delta", "params": {"c": 0.01}})
+    assert j["named_first"] and j["sized"] and j["best_rank"] == 1
+    assert j["moved"] == pytest.approx(0.0115) and j["relative_error"] == pytest.approx(0.15)
+    # a scale: found / clean - 1 against k - 1 (0.95 * 0.8 = 0.76 is exact; 0.9 is 47 % off)
+    for k_found, ok in ((0.76, True), (0.9, False)):
+        rep = Rep([{"effect": "input_scale", "target": "ax", "params": {"k": k_found}}], [])
+        j = withheld.judge(rep, clean, {"effect": "input_scale", "target": "ax", "params": {"k": 0.8}})
+        assert j["named_first"] and j["sized"] is ok
+    # named, but not first: not sized
+    both = Rep([{"effect": "input_scale", "target": "ax", "params": {"k": 0.76}},
+                {"effect": "input_offset", "target": "delta", "params": {"c": 0.012}}], [])  # fmt: skip
+    j = withheld.judge(both, clean, {"effect": "input_offset", "target": "delta", "params": {"c": 0.01}})
+    assert not j["named_first"] and not j["sized"] and j["from_named_model"]
+
+
+#: the slow checks: values other than the example's (withheld.VALUES) and the default checks'.  The steering
+#: and sensor effects the car has no trouble with are named; the others are found (fitted to within 0-30 %, ranked
+#: first or near it) but not *named*: the naming rule asks an effect to remove 40 % of the held-out loss (of
+#: each one-effect part, for a pair), and on this car most of the loss is the car's own misfit (the vx channel
+#: integrating the noisy measured ax; the tyres at high |ay|).  Measured with the example's values and larger ones.
+_NOT_RELEVANT = ("measured (full run, default options): {} fitted to within {} of the truth and ranked {}, but it "
+                 "removes less than the naming rule's 40 % of the held-out loss")  # fmt: skip
+SLOW_CASES = [
+    ("steer_offset", 0.01),
+    ("ax_scale", 0.9),
+    pytest.param("yaw_bias", 0.03, marks=pytest.mark.xfail(reason=_NOT_RELEVANT.format(
+        "a 0.025 (0.06) rad/s bias", "1 % (1 %)", "2nd (1st, paired with input_scale(ax))"), strict=False)),
+    pytest.param("dead_time", 0.05, marks=pytest.mark.xfail(reason=_NOT_RELEVANT.format(
+        "a 0.06 (0.15) s dead time", "29 % (11 %)", "11th (3rd)"), strict=False)),
+    pytest.param("lag", 0.1, marks=pytest.mark.xfail(reason=_NOT_RELEVANT.format(
+        "a 0.08 (0.2) s lag", "21 % (30 %)", "12th (1st, paired with input_scale(ax))"), strict=False)),
+]
+
+
+@pytest.fixture(scope="module")
+def clean_diagnosis():
+    """The diagnosis of the clean run (the reference the injected effects are sized against)."""
+    from reachconf.models import single_track
+
+    data, diagnosis, _ = _realcar_modules()
+    cols = data.read_run(REAL)
+    V = _V(data, cols)
+    return cols, V, diagnosis.run_diagnosis(single_track(), data.make_suite(cols), V)
 
 
 @needs_data
 @pytest.mark.slow
-@pytest.mark.parametrize("name, value", [
-    ("steer_offset", 0.012),
-    pytest.param("yaw_bias", 0.025, marks=pytest.mark.xfail(
-        reason="measured: output_offset(omega) is fitted within 2 % but ranked 2nd behind input_scale(ax) + "
-               "tire_fiala(axles); the vx channel (noisy measured ax) dominates the held-out loss", strict=False)),
-    pytest.param("dead_time", 0.04, marks=pytest.mark.xfail(
-        reason="measured (T = 0.05 s): nothing named, dead_time(delta) not among the five best models", strict=False)),
-])  # fmt: skip
+@pytest.mark.parametrize("name, value", SLOW_CASES)
 def test_injected_effect_is_named_first_and_sized_within_30_percent(clean_diagnosis, name, value):
-    from diagnosis import run_diagnosis
-
+    """The whole run, every candidate (tyres included), default options."""
     from reachconf.models import single_track
 
+    data, diagnosis, withheld = _realcar_modules()
     cols, V, clean = clean_diagnosis
-    w = _withheld()
-    from data import make_suite
-
-    inj, truth = w.inject(cols, name, value)
-    report = run_diagnosis(single_track(), make_suite(inj), V)
-    assert report.named, report.verdict
-    first = report.named[0]
-    assert (first["effect"], first["target"]) == (truth["effect"], truth["target"])
-    (param, size), = truth["params"].items()
-    moved = first["params"][param] - _fitted(clean, truth["effect"], truth["target"])
-    assert abs(moved - size) <= 0.3 * abs(size), (moved, size)
+    inj, truth = withheld.inject(cols, name, value)
+    j = withheld.judge(diagnosis.run_diagnosis(single_track(), data.make_suite(inj), V), clean, truth)
+    assert j["named_first"], j["verdict"]
+    assert j["sized"], j
