@@ -94,8 +94,11 @@ def test_fuzzed_run_files_pass_every_check_or_stop_with_one_line_before_writing(
             assert str(path) in str(exc)
             loads = False
         out, json_path = root / "out", root / "res" / "r.json"
+        # the work starts where the cases are handed to map_cases (with ``workers`` in the run file they run in
+        # worker processes, which the patches of the conformance functions here do not reach)
         with (mock.patch("reachconf.conformance.trace.trace_conformance", started),
               mock.patch("reachconf.conformance.reachset.reachset_conformance", started),
+              mock.patch("reachconf.cli_cases.map_cases", started),
               mock.patch("sys.stderr.write") as write):  # fmt: skip
             try:
                 status = cli.main(["conform", str(path), "--out", str(out), "--json", str(json_path)])
