@@ -47,6 +47,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from data import BANDS, V_SIGMAS, band_label, make_suite, noise_V, read_run, repair_glitches  # noqa: E402
+from jobs import reachset_job  # noqa: E402
 
 import reachconf as rc  # noqa: E402
 from reachconf.io import TestSuite, atomic_write, json_text, save_suite  # noqa: E402
@@ -113,7 +114,7 @@ def box_of(rows):
 def reachset_windows(model, wins, W_of, V, pool):
     """Reachset conformance (eq. 43) of every window with ``W_of(window)`` and V; per band the share of conformant windows."""
     jobs = [(model, c, W_of(c), V) for c in wins]
-    res = run_cases(_reachset_job, jobs, desc="reachset windows", pool=pool)
+    res = run_cases(reachset_job, jobs, desc="reachset windows", pool=pool)
     by_band = {}
     for c, r in zip(wins, res):
         by_band.setdefault(c.group, []).append(r)
@@ -122,15 +123,6 @@ def reachset_windows(model, wins, W_of, V, pool):
              for g, rs in by_band.items()}  # fmt: skip
     share["all"] = {k: sum(v[k] for v in share.values()) for k in ("conformant", "undecided", "windows")}
     return share, res
-
-
-def _reachset_job(job):
-    model, case, W, V = job
-    from reachconf.conformance import reachset_conformance
-
-    r = reachset_conformance(model, case, W, V, keep_tube=False, progress=False)
-    return {"case": case.name, "verdict": r.verdict.value, "first_violation_time": r.first_violation_time,
-            "seconds": r.seconds, "message": r.message}  # fmt: skip
 
 
 def _pyplot():
@@ -319,23 +311,23 @@ def main(argv=None):
                                  f"hard stretch ({hard.name}, peak |ay| {max(peak):.1f} m/s²): vy, omega reach tubes"),
                     plot_bands(tab, counts, out / "W_bands.png")]  # fmt: skip
         if not args.no_diagnosis:
-            from diagnosis import diagnosis_markdown, named_model, run_diagnosis, save_report
+            from diagnosis import as_seen_by_model, diagnosis_markdown, named_model, run_diagnosis, save_report
 
             with clock("diagnosis"):
                 report = run_diagnosis(car, suite, V, progress=True)
                 result["diagnosis"] = report.to_dict()
                 print(f"5. diagnosis: {report.verdict}", flush=True)
-                fitted, parts, named = named_model(car, report)
+                fitted, parts, named, signal = named_model(car, report)
                 bands_after, label = None, ""
                 if parts:  # how far: Table 3 again with the named (else the best scored) effects
                     label = (("named: " if named else "best scored, not named: ")
                              + " + ".join(f"{e}({g}) " + ", ".join(f"{k}={v:.3g}" for k, v in p.items())
                                           for e, g, p in parts))  # fmt: skip
-                    bands_after, _, _, _ = table3(fitted, wins, V, pool)
+                    wins_after = windows(as_seen_by_model(car, suite, signal)) if signal else wins
+                    bands_after, _, _, _ = table3(fitted, wins_after, V, pool)
                     result["table3_after"] = {"model": label, "named": named, "table": bands_after}
                 result["diagnosis_markdown"] = diagnosis_markdown(report, tab, bands_after, label)
-                if not args.no_plots:
-                    result["diagnosis_pictures"] = save_report(report, out)
+                result["diagnosis_pictures"] = save_report(report, out, plots=not args.no_plots)
     except (rc.ReachconfError, OSError) as exc:
         print(f"realcar: error: {exc}", file=sys.stderr)
         return 2
