@@ -72,6 +72,10 @@ class Effect:
         (default: every input/output/state/parameter of its kind).
     order : int
         Composition order on one target (offsets before scales: ``k (u + c)``).
+    start_grid : tuple of float, optional
+        Values of the first parameter tried before the least squares starts
+        (the best one is its start), for losses with several minima in it: a
+        delay on a periodic maneuver fits a wrong period from a fixed start.
     """
 
     name: str
@@ -85,6 +89,7 @@ class Effect:
     targets: Callable | None = None
     order: int = 0
     description: str = ""
+    start_grid: tuple | None = None
 
     def __post_init__(self):
         if self.kind not in ("input", "output", "param", "state"):
@@ -241,7 +246,8 @@ def register_effect(effect: Effect) -> Effect:
 register_effect(Effect("actuator_lag", "input", ("tau",), lambda x: (0.05,), lambda x: ((0.002,), (1.0,)),
                        signal=_lag, order=2, description="first-order actuator lag, time constant tau [s]"))  # fmt: skip
 register_effect(Effect("dead_time", "input", ("T",), lambda x: (0.04,), lambda x: ((0.0,), (0.5,)),
-                       signal=_delay, order=3, description="transport delay T [s] on an input"))  # fmt: skip
+                       signal=_delay, order=3, description="transport delay T [s] on an input",
+                       start_grid=(0.02, 0.05, 0.08, 0.12, 0.16, 0.2, 0.3)))  # fmt: skip
 register_effect(Effect("input_offset", "input", ("c",), lambda x: (0.0,),
                        lambda x: ((-2 * _spread(x),), (2 * _spread(x),)),
                        signal=lambda t, u, th: u + th[0], order=0, description="additive input offset c"))  # fmt: skip

@@ -361,6 +361,17 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
         prior = (x[:nb] - nominal) / (options.prior * scale) * np.sqrt(r.size)
         return np.concatenate([r, prior])
 
+    for e, tgt, i, _ in slots:  # effects whose loss has several minima: start from the best of their grid
+        if e.start_grid and (e.name, tgt) not in start:
+            tries = [v for v in e.start_grid if lo[i] < v < hi[i]]
+            if tries:
+                costs = []
+                for v in [x0[i], *tries]:
+                    x = x0.copy()
+                    x[i] = v
+                    r = fun(x)
+                    costs.append(float(r @ r) if np.all(np.isfinite(r)) else np.inf)
+                x0[i] = [x0[i], *tries][int(np.argmin(costs))]
     span = hi - lo
     try:
         sol = least_squares(fun, x0, bounds=(lo, hi), x_scale=np.where(np.isfinite(span), span / 10, 1.0),
