@@ -114,19 +114,22 @@ def solve_sparse_qp(P, c, A, b, n_eq, settings=None, reuse=None):
     cones = [clarabel.ZeroConeT(int(n_eq)), clarabel.NonnegativeConeT(int(A.shape[0] - n_eq))]
     Pu, A, c, b = sps.triu(P, format="csc"), A.tocsc(), np.asarray(c, float), np.asarray(b, float)
     status = "not solved"
+    attempts = ((1e-7, False), (1e-7, True), (1e-6, True))
     if reuse is not None and not settings and np.all(np.isfinite(b)):
         try:
             sol = _solve_reused(reuse, Pu, c, A, b, int(n_eq), cones)
         except Exception:  # noqa: BLE001 - the fresh solves below report a real failure
             reuse.clear()
             sol = None
-        if sol is not None and str(sol.status) in ("Solved", "AlmostSolved"):
-            return "optimal", np.asarray(sol.x)
+        if sol is not None:
+            if str(sol.status) in ("Solved", "AlmostSolved"):
+                return "optimal", np.asarray(sol.x)
+            attempts = attempts[1:]  # the unrefined solve at 1e-7 was this one: go on with refined KKT solves
     # the scaled problems need no more than 1e-7 (a ten-millionth of V; every trace is simulated and checked
     # again): Clarabel's default 1e-8 sometimes stalls at a residual floor of 2e-10 and then diverges
     # first without iterative refinement of the KKT solves (measured on the vehicle's 100 Hz box QPs: the same
     # iterations and optimum, 40 % less solve time); if that does not solve, with it
-    for tol, refine in ((1e-7, False), (1e-7, True), (1e-6, True)):
+    for tol, refine in attempts:
         try:
             sol = clarabel.DefaultSolver(Pu, c, A, b, cones, _settings(tol, refine, extra=settings)).solve()
         except Exception as exc:  # pragma: no cover - Clarabel raises on malformed data only

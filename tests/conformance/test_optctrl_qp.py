@@ -120,3 +120,23 @@ def test_read_only_start_state_is_accepted(problem):
     frozen = np.array(x0)
     frozen.flags.writeable = False
     np.testing.assert_array_equal(qp.simulate(frozen, W), qp.simulate(np.array(x0), W))
+
+
+def test_a_reused_solver_gives_the_fresh_solvers_optimum(problem):
+    """The SCP keeps one Clarabel solver per pattern and updates its data: same optimum as a solver set up anew."""
+    model, qp, x0, W = problem
+    X = qp.simulate(x0, W)
+    reuse = {}
+    kw = {"V_lo": qp.V_lo, "V_hi": qp.V_hi, "weights": np.ones(3)}
+    first = qp.build(X, W, "box", **kw)
+    assert solve_sparse_qp(*first[:5], reuse=reuse)[0] == "optimal"
+    assert "solver" in reuse  # the pattern's solver is kept
+    X2 = qp.simulate(x0, 0.5 * W)  # another linearisation point: new data, same sparsity pattern
+    P, c, A, b, n_eq, _ = qp.build(X2, 0.5 * W, "box", **kw)
+    status_r, z_r = solve_sparse_qp(P, c, A, b, n_eq, reuse=reuse)
+    status_f, z_f = solve_sparse_qp(P, c, A, b, n_eq)
+    assert status_r == status_f == "optimal"
+    f = lambda v: 0.5 * v @ (P @ v) + c @ v  # noqa: E731
+    assert abs(f(z_r) - f(z_f)) <= 1e-6 * max(1.0, abs(f(z_f)))
+    assert np.max(np.abs(A[:n_eq] @ z_r - b[:n_eq])) < 1e-6 and np.max(A[n_eq:] @ z_r - b[n_eq:]) < 1e-6
+
