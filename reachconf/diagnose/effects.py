@@ -100,6 +100,11 @@ class Effect:
             raise OptionsError(f"effect {self.name!r}: an output effect needs its inverse")
         if self.kind in ("param", "state") and self.model is None:
             raise OptionsError(f"effect {self.name!r}: a {self.kind} effect needs a model transformation")
+        if self.start_grid is not None:
+            g = np.asarray(self.start_grid, dtype=float) if np.ndim(self.start_grid) == 1 else None
+            if g is None or g.size == 0 or not np.all(np.isfinite(g)):
+                raise OptionsError(f"effect {self.name!r}: start_grid must be a non-empty sequence of finite numbers, "
+                                   f"got {self.start_grid!r}")  # fmt: skip
 
     def applicable(self, model) -> list:
         """Targets of ``model`` this effect can act on."""

@@ -2,8 +2,10 @@
 
 import numpy as np
 
+import pytest
+
 import reachconf as rc
-from reachconf.diagnose.effects import EFFECTS
+from reachconf.diagnose.effects import EFFECTS, Effect
 
 
 def _delayed_oscillator_suite(T, n=4):
@@ -36,3 +38,10 @@ def test_a_long_dead_time_on_a_periodic_input_is_found_and_sized():
     assert report.named and report.named[0]["effect"] == "dead_time", report.verdict
     T = report.named[0]["params"]["T"]
     assert abs(T - 0.18) < 0.02, T
+
+
+@pytest.mark.parametrize("grid", [(), (0.1, float("nan")), ((0.1, 0.2),), "abc"])
+def test_a_bad_start_grid_is_refused_naming_the_effect(grid):
+    with pytest.raises(rc.OptionsError, match="'my_delay': start_grid"):
+        Effect("my_delay", "input", ("T",), lambda x: (0.05,), lambda x: ((0.0,), (1.0,)),
+               signal=lambda t, u, th: u, start_grid=grid)
