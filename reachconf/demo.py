@@ -127,7 +127,7 @@ def make_demo_suite(folder, n_cases: int = 3, seed: int = 2026, duration: float 
         cases.append(TestCase(f"lane_change_{k + 1:02d}", "lane_change", t, U, Y, model.input_names,
                               model.output_names))  # fmt: skip
     suite = TestSuite(cases, name="demo lane changes")
-    save_suite(suite, folder)
+    save_suite(suite, folder, replace=True)
     return suite
 
 

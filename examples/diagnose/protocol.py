@@ -36,7 +36,7 @@ from reachconf.datasets.vehicle_campaign import (
 )
 from reachconf.io import TestCase, TestSuite
 
-__all__ = ["SuiteSpec", "tuning_specs", "test_specs", "make_suite", "judge", "STANDARD_GROUPS", "TUNING_MANEUVERS"]
+__all__ = ["SuiteSpec", "tuning_specs", "test_specs", "case_names", "make_suite", "judge", "STANDARD_GROUPS", "TUNING_MANEUVERS"]
 
 #: the eight standard maneuvers of the campaign (kind, peak lateral acceleration m/s²)
 STANDARD_GROUPS = tuple((k, a) for k in ("LC", "SW", "DLC", "SL") for a in (2.0, 4.0))
@@ -178,6 +178,12 @@ def _reference(kind, a_lat):
     if kind in TUNING_MANEUVERS:
         return excitation_path(**TUNING_MANEUVERS[kind])
     return reference_path(kind, a_lat)
+
+
+def case_names(spec: SuiteSpec) -> list:
+    """Names of the cases of ``spec``'s suite: ``<maneuver>_<acceleration>_<repetition>``."""
+    groups = [kind if a is None else f"{kind}_{a:g}" for kind, a in spec.maneuvers]
+    return [f"{g}_{r + 1}" for g in groups for r in range(spec.repetitions)]
 
 
 def make_suite(spec: SuiteSpec) -> TestSuite:

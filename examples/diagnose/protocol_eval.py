@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from protocol import judge, make_suite, test_specs, tuning_specs
+from protocol import case_names, judge, make_suite, test_specs, tuning_specs
 from reachconf.diagnose.effects import EFFECTS
 from reachconf.diagnose.fit import Candidate
 from reachconf.diagnose.options import INTERVAL_METHODS, DiagnoseOptions
@@ -37,9 +37,12 @@ def load_or_make(spec, cache) -> "TestSuite":  # noqa: F821
     meta = folder / "spec.json"
     want = json.dumps(spec.to_dict(), sort_keys=True)
     if meta.exists() and meta.read_text() == want:
-        return load_suite(folder)
+        suite = load_suite(folder)
+        if sorted(c.name for c in suite) == sorted(case_names(spec)):
+            return suite
+        # a folder written before save_suite refused stale files may hold another spec's cases: made again
     suite = make_suite(spec)
-    save_suite(suite, folder)
+    save_suite(suite, folder, replace=True)
     atomic_write(meta, want)
     return suite
 

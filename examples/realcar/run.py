@@ -265,7 +265,7 @@ def main(argv=None):
         with clock("suite and V"):
             stop = cols["t"][0] + QUICK_SECONDS if args.quick else None
             suite = make_suite(cols, CASE_SECONDS, stop=stop)
-            save_suite(suite, out / "suite")
+            save_suite(suite, out / "suite", replace=True)
             _, glitches = repair_glitches(cols["delta"])
             vd = noise_V(cols)
             half = np.array([h for _, h in vd.values()])

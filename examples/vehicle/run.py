@@ -227,7 +227,7 @@ def campaign(folder, progress=True, quick=False, **kw):
         suite = suite.map(lambda c: replace(c.segment(c.t[0], c.t[0] + QUICK["horizon"]), name=c.name))
     from reachconf.io import save_suite
 
-    save_suite(suite, folder)
+    save_suite(suite, folder, replace=True)
     return load_suite(folder)
 
 

@@ -213,17 +213,47 @@ def _toml_str(s: str) -> str:
     return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def save_suite(suite: TestSuite, path, fmt: str = "csv") -> Path:
-    """Write a suite as a folder of ``.csv`` (or ``.npz``) files plus ``suite.toml``."""
+def save_suite(suite: TestSuite, path, fmt: str = "csv", replace: bool = False) -> Path:
+    """Write a suite as a folder of ``.csv`` (or ``.npz``) files plus ``suite.toml``.
+
+    Parameters
+    ----------
+    suite : TestSuite
+    path : path-like
+        The folder (created if missing).
+    fmt : {"csv", "npz"}
+    replace : bool, default False
+        The folder may already hold test case files that are not cases of
+        ``suite`` (e.g. an earlier suite saved there).  :func:`load_suite`
+        reads every case file of a folder, so they would silently join this
+        suite: without ``replace`` that is an error (nothing is deleted);
+        with it, they are deleted after the new cases are written.
+
+    Raises
+    ------
+    DataError
+        Bad ``fmt``, cases with different signals, or (without ``replace``)
+        other case files in the folder, named.
+    """
     if fmt not in ("csv", "npz"):
         raise DataError(f"fmt must be 'csv' or 'npz', got {fmt!r}")
     folder = Path(path)
-    folder.mkdir(parents=True, exist_ok=True)
     first = suite[0]
     for case in suite:
         if case.input_names != first.input_names or case.output_names != first.output_names:
             raise DataError(f"suite {suite.name!r}: case {case.name!r} has other signals than {first.name!r}")
+    names = {f"{case.name}.{fmt}" for case in suite}
+    stale = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")
+                   and p.suffix.lower() in (".csv", ".npz") and p.name not in names) if folder.is_dir() else []  # fmt: skip
+    if stale and not replace:
+        shown = ", ".join(p.name for p in stale[:5]) + (f" and {len(stale) - 5} more" if len(stale) > 5 else "")
+        raise DataError(f"{folder}: holds test case files that are not in suite {suite.name!r} ({shown}); "
+                        "load_suite would read them as part of it: save into an empty folder or pass replace=True")  # fmt: skip
+    folder.mkdir(parents=True, exist_ok=True)
+    for case in suite:
         save_case(case, folder / f"{case.name}.{fmt}")
+    for p in stale:
+        p.unlink()
     lines = [f"name = {_toml_str(suite.name)}",
              "inputs = [" + ", ".join(_toml_str(s) for s in first.input_names) + "]",
              "outputs = [" + ", ".join(_toml_str(s) for s in first.output_names) + "]",

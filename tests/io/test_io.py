@@ -38,6 +38,24 @@ def test_round_trip_csv_and_npz(tmp_path):
             np.testing.assert_array_equal(c0.extras["u_req"], c1.extras["u_req"])
 
 
+def test_save_suite_into_a_folder_holding_another_suite(tmp_path):
+    """Another suite's case files would silently join the saved suite when loaded: refused, or replaced on request."""
+    folder = save_suite(TestSuite([make_case("a", "lc"), make_case("b", "lc"), make_case("c", "dlc")], name="old"),
+                        tmp_path / "s")  # fmt: skip
+    (folder / "notes.txt").write_text("kept")
+    new = TestSuite([make_case("a", "sl"), make_case("d", "sl")], name="new")
+    with pytest.raises(rc.DataError, match=r"b\.csv, c\.csv.*replace=True"):
+        save_suite(new, folder)
+    assert sorted(c.name for c in load_suite(folder)) == ["a", "b", "c"]  # nothing was written or deleted
+    assert [c.group for c in load_suite(folder)] == ["lc", "lc", "dlc"]
+    save_suite(new, folder, replace=True)
+    back = load_suite(folder)
+    assert [c.name for c in back] == ["a", "d"] and [c.group for c in back] == ["sl", "sl"]
+    assert back.name == "new" and (folder / "notes.txt").read_text() == "kept"
+    save_suite(new, folder)  # the same suite again: nothing stale, no error
+    assert [c.name for c in load_suite(folder)] == ["a", "d"]
+
+
 def test_suite_toml_groups_rename_units(tmp_path):
     write(tmp_path / "run1.csv", "time,steer,y1,y2\n0,10,0,0\n0.1,20,1,1\n0.2,30,2,4\n")
     write(tmp_path / "suite.toml", 'inputs = ["u"]\noutputs = ["y1", "y2"]\n[groups]\n"run1.csv" = "slalom"\n'
