@@ -23,7 +23,7 @@ from reachconf.diagnose.options import INTERVAL_METHODS, DiagnoseOptions
 from reachconf.diagnose.select import Scored, decide
 from reachconf.io import atomic_write, load_suite, save_suite
 
-__all__ = ["load_or_make", "diagnose_job", "stored_row", "interleaved", "suite_job", "TUNING_RUN_THRESHOLDS", "redecide", "choose_thresholds", "coverage", "summary_tables",
+__all__ = ["stem", "load_or_make", "diagnose_job", "stored_row", "interleaved", "suite_job", "TUNING_RUN_THRESHOLDS", "redecide", "choose_thresholds", "coverage", "summary_tables",
            "GRID"]  # fmt: skip
 
 #: thresholds searched on the tuning suites
@@ -31,9 +31,16 @@ GRID = {"z_name": (2.0, 2.5, 3.0, 4.0), "min_improvement": (0.1, 0.15, 0.2, 0.25
         "z_separate": (1.0, 1.5, 2.0, 2.5, 3.0)}  # fmt: skip
 
 
+def stem(spec) -> str:
+    """File stem of a suite's folder and results: its name, and for test suites its seed (test sets of other
+    seeds use the same names)."""
+    d = spec if isinstance(spec, dict) else spec.to_dict()
+    return d["name"] if d["role"] == "tuning" else f"{d['name']}-seed{d['seed']}"
+
+
 def load_or_make(spec, cache) -> "TestSuite":  # noqa: F821
     """The suite of ``spec`` from ``cache/suites/<name>``, generated (and stored) if missing or different."""
-    folder = Path(cache) / "suites" / spec.name
+    folder = Path(cache) / "suites" / stem(spec)
     meta = folder / "spec.json"
     want = json.dumps(spec.to_dict(), sort_keys=True)
     if meta.exists() and meta.read_text() == want:
@@ -69,7 +76,7 @@ def _key(spec, nominal, fit, options) -> str:
 def stored_row(spec, cache, nominal, fit, options):
     """The stored diagnosis of ``spec`` made with these settings, or None."""
     res = Path(cache) / "results"
-    path, npz = res / f"{spec.name}.json", res / f"{spec.name}.npz"
+    path, npz = res / f"{stem(spec)}.json", res / f"{stem(spec)}.npz"
     if path.exists() and npz.exists():
         row = json.loads(path.read_text())
         if row.get("key") == _key(spec, nominal, fit, options):
@@ -95,7 +102,7 @@ def diagnose_job(job) -> dict:
 
     spec, cache, nominal, fit, options, redo = job
     res = Path(cache) / "results"
-    path, npz = res / f"{spec.name}.json", res / f"{spec.name}.npz"
+    path, npz = res / f"{stem(spec)}.json", res / f"{stem(spec)}.npz"
     key = _key(spec, nominal, fit, options)
     row = None if redo else stored_row(spec, cache, nominal, fit, options)
     if row is not None:
@@ -131,7 +138,7 @@ def suite_job(job) -> dict:
 
 def redecide(row, cache, **thresholds) -> dict:
     """The decision on a stored result with other thresholds (no refitting): status, named parts, alternatives."""
-    data = np.load(Path(cache) / "results" / f"{row['spec']['name']}.npz")
+    data = np.load(Path(cache) / "results" / f"{stem(row['spec'])}.npz")
     base = Scored(Candidate(()), data["base"])
     models = [Scored(Candidate(tuple((EFFECTS[e], t) for e, t in m["parts"])), data[f"model{i}"])
               for i, m in enumerate(row["models"])]  # fmt: skip

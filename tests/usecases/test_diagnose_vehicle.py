@@ -95,3 +95,11 @@ def test_protocol_smoke_two_effects(tmp_path, nominal):
     assert d["status"] == rows[0]["decision"]["status"]
     md = protocol_eval.summary_tables(rows, "smoke")
     assert "| steering lag | 1 |" in md and "coverage of the 95 % intervals" in md
+    # a suite folder holding a case of another suite (as one written by an older save_suite could) is made again
+    folder = tmp_path / "suites" / protocol_eval.stem(specs[0])
+    stray = folder / "DLC_2_1.csv"
+    stray.write_text(next(folder.glob("*.csv")).read_text())
+    suite = protocol_eval.load_or_make(specs[0], tmp_path)
+    assert sorted(c.name for c in suite) == sorted(protocol.case_names(specs[0])) and not stray.exists()
+    test_spec = protocol.test_specs(seed=5)[0]  # test sets of other seeds keep their own folders
+    assert protocol_eval.stem(test_spec) != protocol_eval.stem(protocol.test_specs(seed=6)[0])
