@@ -131,6 +131,11 @@ def tuning_specs(seed: int = 1) -> list:
         ("two effects", _combine(steering_lag(0.1), yaw_offset(1.0))),
         ("two effects", _combine(steering_dead_time(0.08), accel_offset(-0.25))),
         ("two effects", _combine(steering_offset(1.0), accel_scale_offset(0.75, 0.15))),
+        # a second, weaker effect next to a large first one (added with the consistency route of the naming rule)
+        ("two effects", _combine(steering_offset(-1.8), yaw_offset(0.9))),
+        ("two effects", _combine(steering_offset(1.2), accel_offset(-0.2))),
+        ("two effects", _combine(steering_lag(0.15), accel_offset(0.15))),
+        ("two effects", _combine(steering_dead_time(0.12), yaw_offset(-0.8))),
     ]  # fmt: skip
     rng = np.random.default_rng(seed)
     out = []

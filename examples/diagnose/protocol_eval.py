@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import time
+from functools import lru_cache
 from itertools import product
 from pathlib import Path
 
@@ -28,7 +29,8 @@ __all__ = ["stem", "load_or_make", "diagnose_job", "stored_row", "interleaved", 
 
 #: thresholds searched on the tuning suites
 GRID = {"z_name": (2.0, 2.5, 3.0, 4.0), "min_improvement": (0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5),
-        "z_separate": (1.0, 1.5, 2.0, 2.5, 3.0)}  # fmt: skip
+        "z_separate": (1.0, 1.5, 2.0, 2.5, 3.0), "consistent_gain": (0.05, 0.1, 0.2),
+        "max_spread": (0.0, 0.05, 0.1, 0.2, 0.3)}  # fmt: skip
 
 
 def stem(spec) -> str:
@@ -64,8 +66,10 @@ def generate_job(job):
 #: thresholds the tuning suites are diagnosed with before the search (the search re-decides their stored held-out
 #: losses with every grid point; these set only the verdicts shown in the tuning table).  ``z_separate`` is the
 #: grid's smallest, so that the run checks the identifiability (mimic loss) of every alternative that some grid
-#: point's held-out test would rule out
-TUNING_RUN_THRESHOLDS = {"z_name": 3.0, "min_improvement": 0.3, "z_separate": min(GRID["z_separate"])}
+#: point's held-out test would rule out; ``min_improvement`` is the grid's largest and the consistency route the
+#: loosest, so that the run measures the spread across groups of every model some grid point could name by that route
+TUNING_RUN_THRESHOLDS = {"z_name": 3.0, "min_improvement": max(GRID["min_improvement"]),
+                         "z_separate": min(GRID["z_separate"]), "consistent_gain": min(GRID["consistent_gain"]), "max_spread": max(GRID["max_spread"])}
 
 
 def _key(spec, nominal, fit, options) -> str:
@@ -136,14 +140,24 @@ def suite_job(job) -> dict:
     return diagnose_job(job)
 
 
+@lru_cache(maxsize=256)
+def _losses(path: str) -> dict:
+    with np.load(path) as data:
+        return {k: data[k] for k in data.files}
+
+
 def redecide(row, cache, **thresholds) -> dict:
-    """The decision on a stored result with other thresholds (no refitting): status, named parts, alternatives."""
-    data = np.load(Path(cache) / "results" / f"{stem(row['spec'])}.npz")
+    """The decision on a stored result with other thresholds (no refitting): status, named parts, alternatives.
+
+    The consistency route uses the spreads the run measured (``decision["consistency"]``); a model whose spread
+    was not measured cannot be named by it."""
+    data = _losses(str(Path(cache) / "results" / f"{stem(row['spec'])}.npz"))
     base = Scored(Candidate(()), data["base"])
     models = [Scored(Candidate(tuple((EFFECTS[e], t) for e, t in m["parts"])), data[f"model{i}"])
               for i, m in enumerate(row["models"])]  # fmt: skip
+    measured = row["decision"].get("consistency", {})
     opts = DiagnoseOptions(**thresholds)
-    d = decide(base, models, data["clusters"], opts)
+    d = decide(base, models, data["clusters"], opts, spread=lambda m: measured.get(m.label, {}).get("spread"))
     chosen = d["chosen"]
     return {"status": d["status"], "named_parts": [list(k) for k in chosen.candidate.keys] if chosen else [],
             "alternatives": [{"parts": [list(k) for k in m.candidate.keys]} for m, _ in d["alternatives"]]}
@@ -164,18 +178,23 @@ def choose_thresholds(rows, cache) -> dict:
     """Grid search on the tuning rows: most true effects found, fewest wrong names, few indistinguishable verdicts.
 
     Objective: ``found - 2 wrong_suites - 0.5 indistinguishable`` (shares), ties broken towards the
-    more cautious thresholds (larger ``z_name``, ``min_improvement``, ``z_separate``).
+    more cautious thresholds (larger ``z_name``, ``min_improvement``, ``z_separate``, ``consistent_gain``,
+    smaller ``max_spread``).
     """
     specs = [r["spec"] for r in rows]
+    names = ("z_name", "min_improvement", "z_separate", "consistent_gain", "max_spread")
     table = []
-    for z, g, zs in product(GRID["z_name"], GRID["min_improvement"], GRID["z_separate"]):
-        th = {"z_name": z, "min_improvement": g, "z_separate": zs}
+    for values in product(*(GRID[k] for k in names)):
+        th = dict(zip(names, values))
+        if th["max_spread"] == 0 and th["consistent_gain"] != GRID["consistent_gain"][0]:
+            continue  # the route is closed: consistent_gain does not matter
         judged = [judge(redecide(r, cache, **th), s["truth"]) for r, s in zip(rows, specs)]
         sc = _score(judged, specs)
         sc["objective"] = sc["found"] - 2 * sc["wrong_suites"] - 0.5 * sc["indistinguishable"]
         table.append({**th, **sc})
-    best = max(table, key=lambda r: (round(r["objective"], 9), r["z_name"], r["min_improvement"], r["z_separate"]))
-    return {"chosen": {k: best[k] for k in ("z_name", "min_improvement", "z_separate")}, "best": best, "grid": table}
+    best = max(table, key=lambda r: (round(r["objective"], 9), r["z_name"], r["min_improvement"], r["z_separate"],
+                                     r["consistent_gain"], -r["max_spread"]))  # fmt: skip
+    return {"chosen": {k: best[k] for k in names}, "best": best, "grid": table}
 
 
 def coverage(rows) -> dict:

@@ -76,6 +76,11 @@ class Effect:
         Values of the first parameter tried before the least squares starts
         (the best one is its start), for losses with several minima in it: a
         delay on a periodic maneuver fits a wrong period from a fixed start.
+    null : tuple of float, optional
+        The parameter values at which the effect does nothing (an offset's 0,
+        a scale's 1, a delay's 0); None when there is none (a saturation's
+        limit at infinity).  The consistency route of the naming rule
+        measures the effect's size across maneuvers from it.
     """
 
     name: str
@@ -90,6 +95,7 @@ class Effect:
     order: int = 0
     description: str = ""
     start_grid: tuple | None = None
+    null: tuple | None = None
 
     def __post_init__(self):
         if self.kind not in ("input", "output", "param", "state"):
@@ -105,6 +111,10 @@ class Effect:
             if g is None or g.size == 0 or not np.all(np.isfinite(g)):
                 raise OptionsError(f"effect {self.name!r}: start_grid must be a non-empty sequence of finite numbers, "
                                    f"got {self.start_grid!r}")  # fmt: skip
+        if self.null is not None and (np.ndim(self.null) != 1 or len(self.null) != len(self.params)
+                                      or not np.all(np.isfinite(np.asarray(self.null, dtype=float)))):
+            raise OptionsError(f"effect {self.name!r}: null must give one finite value per parameter "
+                               f"{self.params}, got {self.null!r}")  # fmt: skip
 
     def applicable(self, model) -> list:
         """Targets of ``model`` this effect can act on."""
@@ -249,25 +259,26 @@ def register_effect(effect: Effect) -> Effect:
 
 
 register_effect(Effect("actuator_lag", "input", ("tau",), lambda x: (0.05,), lambda x: ((0.002,), (1.0,)),
-                       signal=_lag, order=2, description="first-order actuator lag, time constant tau [s]"))  # fmt: skip
+                       signal=_lag, order=2, description="first-order actuator lag, time constant tau [s]",
+                       null=(0.0,)))  # fmt: skip
 register_effect(Effect("dead_time", "input", ("T",), lambda x: (0.04,), lambda x: ((0.0,), (0.5,)),
                        signal=_delay, order=3, description="transport delay T [s] on an input",
-                       start_grid=(0.02, 0.05, 0.08, 0.12, 0.16, 0.2, 0.3)))  # fmt: skip
+                       start_grid=(0.02, 0.05, 0.08, 0.12, 0.16, 0.2, 0.3), null=(0.0,)))  # fmt: skip
 register_effect(Effect("input_offset", "input", ("c",), lambda x: (0.0,),
                        lambda x: ((-2 * _spread(x),), (2 * _spread(x),)),
-                       signal=lambda t, u, th: u + th[0], order=0, description="additive input offset c"))  # fmt: skip
+                       signal=lambda t, u, th: u + th[0], order=0, description="additive input offset c", null=(0.0,)))  # fmt: skip
 register_effect(Effect("input_scale", "input", ("k",), lambda x: (1.0,), lambda x: ((0.2,), (5.0,)),
-                       signal=lambda t, u, th: th[0] * u, order=1, description="input gain k"))  # fmt: skip
+                       signal=lambda t, u, th: th[0] * u, order=1, description="input gain k", null=(1.0,)))  # fmt: skip
 register_effect(Effect("output_offset", "output", ("c",), lambda x: (0.0,),
                        lambda x: ((-_spread(x),), (_spread(x),)),
                        signal=lambda t, y, th: y + th[0], inverse=lambda y, th: y - th[0], order=0,
-                       description="sensor bias c (measured = true + c)"))  # fmt: skip
+                       description="sensor bias c (measured = true + c)", null=(0.0,)))  # fmt: skip
 register_effect(Effect("output_scale", "output", ("k",), lambda x: (1.0,), lambda x: ((0.2,), (5.0,)),
                        signal=lambda t, y, th: th[0] * y, inverse=lambda y, th: y / th[0], order=1,
-                       description="sensor gain k (measured = k true)"))  # fmt: skip
+                       description="sensor gain k (measured = k true)", null=(1.0,)))  # fmt: skip
 register_effect(Effect("tire_saturation", "param", ("F",), lambda x: (10.0,), lambda x: ((0.5,), (200.0,)),
                        model=_tire_saturation_model, targets=_stiffness_params,
                        description="force terms linear in stiffness c saturate at F: c s -> c s / sqrt(1 + (c s / F)^2)"))  # fmt: skip
 register_effect(Effect("drag", "state", ("c_d",), lambda x: (0.0,), lambda x: ((-0.05,), (0.05,)),
                        model=_drag_model, targets=_velocity_states,
-                       description="quadratic speed term v' -= c_d v |v| on a velocity state"))  # fmt: skip
+                       description="quadratic speed term v' -= c_d v |v| on a velocity state", null=(0.0,)))  # fmt: skip

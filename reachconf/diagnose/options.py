@@ -16,7 +16,8 @@ __all__ = ["DiagnoseOptions", "INTERVAL_METHODS", "LOSS_SCALES"]
 class DiagnoseOptions:
     """Options of :func:`reachconf.diagnose`.
 
-    The decision thresholds (``z_name``, ``min_improvement``, ``z_separate``)
+    The decision thresholds (``z_name``, ``min_improvement``, ``consistent_gain``,
+    ``max_spread``, ``z_separate``)
     and the interval method were chosen on the tuning suites of the
     validation protocol only (``docs/diagnosis-validation.md``) and checked
     on test suites made differently.
@@ -51,13 +52,28 @@ class DiagnoseOptions:
     pair_top : int, default 4
         The best ``pair_top`` single effects (held-out; among those that beat
         the base with a paired z of at least 1) are also scored in pairs.
+    pair_next : int, default 2
+        A second effect can be masked by a large first one (screened alone,
+        it imitates the first instead): every candidate is screened again
+        next to the best single effect, and the best ``pair_next`` of these
+        pairs are scored too.
     z_name : float, default 3.0
         An effect (or a second effect) is added only if its held-out gain is
         significant: paired z statistic of the held-out losses over clusters
         (cases) at least ``z_name``.
-    min_improvement : float, default 0.4
+    min_improvement : float, default 0.5
         ... and relevant: it lowers the held-out prediction loss of the model
         it is added to by at least this share.
+    consistent_gain : float, default 0.2
+        The consistency route to relevance: an effect whose significant gain
+        is below ``min_improvement`` but at least this share is still
+        relevant when it is the same in every maneuver group (a model's own
+        misfit, absorbed by an effect, changes with the maneuver):
+    max_spread : float, default 0.2
+        ... the standard deviation of its size (the parameter's distance from
+        the effect's null value) fitted on each group alone, relative to the
+        mean size, at most this (``reachconf.diagnose.consistency``).
+        ``max_spread = 0`` closes the route.
     z_separate : float, default 1.5
         An alternative explanation is ruled out when the chosen one predicts the
         held-out cases better with a paired z of at least ``z_separate``;
@@ -108,8 +124,11 @@ class DiagnoseOptions:
     param_bounds: float = 0.5
     screen: int = 6
     pair_top: int = 4
+    pair_next: int = 2
     z_name: float = 3.0
-    min_improvement: float = 0.4
+    min_improvement: float = 0.5
+    consistent_gain: float = 0.2
+    max_spread: float = 0.2
     z_separate: float = 1.5
     interval: float = 0.95
     interval_method: str = "spread"
@@ -132,6 +151,9 @@ class DiagnoseOptions:
                 raise OptionsError(f"DiagnoseOptions.{name} must be a positive integer, got {v!r}")
         if not (isinstance(self.pair_top, (int, np.integer)) and self.pair_top >= 0):
             raise OptionsError(f"DiagnoseOptions.pair_top must be an integer >= 0, got {self.pair_top!r}")
+        if not (isinstance(self.pair_next, (int, np.integer)) and not isinstance(self.pair_next, bool)
+                and self.pair_next >= 0):
+            raise OptionsError(f"DiagnoseOptions.pair_next must be an integer >= 0, got {self.pair_next!r}")
         if self.smooth < 3 or self.smooth % 2 == 0:
             raise OptionsError(f"DiagnoseOptions.smooth must be an odd number >= 3, got {self.smooth}")
         for name in ("z_name", "z_separate"):
@@ -140,6 +162,10 @@ class DiagnoseOptions:
                 raise OptionsError(f"DiagnoseOptions.{name} must be a number >= 0, got {v!r}")
         if not (isinstance(self.min_improvement, (int, float)) and 0 <= self.min_improvement < 1):
             raise OptionsError(f"DiagnoseOptions.min_improvement must be in [0, 1), got {self.min_improvement!r}")
+        for name in ("consistent_gain", "max_spread"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and 0 <= v < 1):
+                raise OptionsError(f"DiagnoseOptions.{name} must be in [0, 1), got {v!r}")
         if not (isinstance(self.interval, (int, float)) and 0 < self.interval < 1):
             raise OptionsError(f"DiagnoseOptions.interval must be in (0, 1), got {self.interval!r}")
         if self.start_state not in ("past", "centered"):

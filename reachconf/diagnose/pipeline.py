@@ -37,6 +37,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from reachconf.conformance.trace import trace_disturbances
+from reachconf.diagnose.consistency import group_sizes, model_spread
 from reachconf.diagnose.effects import EFFECTS, Effect
 from reachconf.diagnose.fit import Candidate, fit_candidate, noise_level, prepare, residual_scale, window_counts
 from reachconf.diagnose.options import DiagnoseOptions
@@ -153,7 +154,8 @@ def _which(model, prepared, candidates, folds, clusters, sigma, fit_names, optio
         bar.update(1)
     # pairs of the best singles that predict the held-out cases better than the base at all (z >= 1)
     useful = [m for m in models if paired_test(m.losses, state["base"].losses, clusters)["z"] >= 1.0]
-    top = sorted(useful, key=lambda m: m.total)[: options.pair_top]
+    ranked = sorted(useful, key=lambda m: m.total)
+    top = ranked[: options.pair_top]
     for a, b in combinations(top, 2):
         if a.candidate.keys & b.candidate.keys:
             continue
@@ -165,6 +167,32 @@ def _which(model, prepared, candidates, folds, clusters, sigma, fit_names, optio
         bar.set_postfix_str(cand.label)
         models.append(cross_fit(model, cand, prepared, folds, sigma, fit_names, options, cache, start=st))
         bar.update(1)
+    # a second effect can be masked by a large first one (screened alone, it imitates the first): the effects
+    # screened again next to the best single, the best ``pair_next`` of the new pairs scored as well
+    if ranked and options.pair_next > 0:
+        first = ranked[0]
+        have = {m.candidate.keys for m in models}
+        fs = fold_start(first)
+        st0 = {**base_full.base_params, **{k: v for k, v in fs.items() if isinstance(k, tuple)}}
+        nxt = []
+        for e, tgt in candidates:
+            cand = Candidate(first.candidate.parts + ((e, tgt),))
+            structural = tuple((x.name, t) for x, t in cand.parts if x.kind in ("param", "state"))
+            if (e.name, tgt) in first.candidate.keys or cand.keys in have or (structural and structural not in cache):
+                continue  # (no new model code is generated for this screen)
+            bar.set_postfix_str(f"next to {first.label}: {e.name}({tgt})")
+            nxt.append(fit_candidate(base_full.model, cand, prepared, sigma, (), options, cache, start=st0, max_nfev=20))
+        nxt.sort(key=lambda f: f.train_cost)
+        for f in nxt[: options.pair_next]:
+            st = {**fs, **f.effect_params}
+            bar.set_postfix_str(f.candidate.label)
+            models.append(cross_fit(model, f.candidate, prepared, folds, sigma, fit_names, options, cache, start=st))
+            single = Candidate(f.candidate.parts[-1:])  # the pair must beat this one too (select.decide)
+            if single.keys not in have:
+                (key1,) = single.keys
+                st1 = {**base_full.base_params, key1: f.effect_params[key1]}
+                models.append(cross_fit(model, single, prepared, folds, sigma, fit_names, options, cache, start=st1))
+                have.add(single.keys)
 
 
 def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True, seed: int = 0, V=None,
@@ -255,7 +283,17 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         mimics[b.label] = res
         return res["mimic_loss"]
 
-    decision = decide(base_sc, models, clusters, options, mimic=mimic)
+    spreads = {}
+
+    def spread(m):  # is every effect of m the same in every maneuver group? (select.decide, consistency)
+        if m.label not in spreads:
+            sizes = group_sizes(model, m, prepared, scale, options, cache)
+            spreads[m.label] = {"spread": model_spread(m.candidate, sizes), "sizes": sizes}
+        return spreads[m.label]["spread"]
+
+    decision = decide(base_sc, models, clusters, options, mimic=mimic, spread=spread)
+    decision["consistency"] = {label: {"spread": v["spread"], "sizes": {f"{e}({t})": x for (e, t), x in v["sizes"].items()}}
+                               for label, v in spreads.items()}  # fmt: skip
     for label, res in mimics.items():
         decision["identifiability"].setdefault(label, {}).update(effect_loss=res["effect_loss"],
                                                                  mimic_params=res["params"])  # fmt: skip

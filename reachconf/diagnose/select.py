@@ -18,6 +18,11 @@ The decision (:func:`decide`):
   ``z >= z_name`` and lowers its held-out loss by at least
   ``min_improvement`` (relevance: a tiny, real misfit of the base structure
   does not earn a name);
+* ... or, below ``min_improvement``, lowers it by at least
+  ``consistent_gain`` with an effect of the same size in every maneuver
+  group (relative spread at most ``max_spread``:
+  :mod:`reachconf.diagnose.consistency`; a structural misfit absorbed by an
+  effect changes with the maneuver);
 * a model with two effects is admissible when it beats *each* of its two
   one-effect sub-models in the same way (each effect must earn its place);
 * the admissible model with the lowest held-out loss is chosen; every other
@@ -136,8 +141,11 @@ def cross_fit(base_model, cand: Candidate, data, folds, sigma, fit_names, option
     return Scored(cand, losses, fits)
 
 
-def _admissible(m: Scored, base: Scored, singles: dict, clusters, options) -> tuple:
-    """(admissible, tests): a one-effect model against the base, a two-effect model against each of its parts."""
+def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, spread=None) -> tuple:
+    """(admissible, tests): a one-effect model against the base, a two-effect model against each of its parts.
+
+    ``spread(m)``: the relative spread of ``m``'s effects across groups (or None), asked only when a
+    significant gain is below ``min_improvement`` but at least ``consistent_gain``."""
     keys = m.candidate.keys
     if len(keys) == 1:
         refs = [base]
@@ -151,11 +159,16 @@ def _admissible(m: Scored, base: Scored, singles: dict, clusters, options) -> tu
         t = paired_test(m.losses, r.losses, clusters)
         t["against"] = r.label
         tests.append(t)
-        ok &= t["z"] >= options.z_name and t["gain"] >= options.min_improvement
+        relevant = t["gain"] >= options.min_improvement
+        if not relevant and ok and t["z"] >= options.z_name and t["gain"] >= options.consistent_gain:
+            s = spread(m) if spread is not None and options.max_spread > 0 else None
+            t["spread"] = s
+            relevant = s is not None and s <= options.max_spread
+        ok &= t["z"] >= options.z_name and relevant
     return bool(ok), tests
 
 
-def decide(base: Scored, models: list, clusters, options, mimic=None) -> dict:
+def decide(base: Scored, models: list, clusters, options, mimic=None, spread=None) -> dict:
     """The naming rule (module docstring) on scored models.
 
     Parameters
@@ -170,6 +183,11 @@ def decide(base: Scored, models: list, clusters, options, mimic=None) -> dict:
         windows) that ``other`` refitted to ``chosen``'s predictions cannot
         remove (:func:`reachconf.diagnose.separable.mimic_loss`); None: not
         checked.  Without it, the held-out test alone rules alternatives out.
+    spread : callable, optional
+        ``spread(model) -> float or None``: the relative spread of the
+        model's effects across maneuver groups
+        (:func:`reachconf.diagnose.consistency.model_spread`); None: the
+        consistency route is closed.
 
     Returns
     -------
@@ -185,7 +203,7 @@ def decide(base: Scored, models: list, clusters, options, mimic=None) -> dict:
     singles = {m.candidate.keys: m for m in models if len(m.candidate.keys) == 1}
     tests, admissible = {}, []
     for m in models:
-        ok, t = _admissible(m, base, singles, clusters, options)
+        ok, t = _admissible(m, base, singles, clusters, options, spread)
         tests[m.label] = t
         if ok:
             admissible.append(m)

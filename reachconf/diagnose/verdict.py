@@ -70,11 +70,13 @@ def decision_record(decision, named, alternatives, options) -> dict:
            "alternatives": alternatives, "admissible": decision["admissible"],
            "best": decision["best"].label if decision["best"] is not None else None,
            "thresholds": {"z_name": options.z_name, "min_improvement": options.min_improvement,
+                          "consistent_gain": options.consistent_gain, "max_spread": options.max_spread,
                           "z_separate": options.z_separate, "interval": options.interval,
                           "interval_method": options.interval_method}}  # fmt: skip
     if chosen is not None:
         rec["tests"] = decision["tests"].get(chosen.label, [])
     rec["identifiability"] = decision.get("identifiability", {})
+    rec["consistency"] = decision.get("consistency", {})
     return rec
 
 
@@ -87,10 +89,14 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
         return pre + (f"no effect in the library explains the gap (best: {best_entry['label']}, held-out prediction "
                       f"loss {-100 * best_entry['prediction_gain']:+.0f} %, z = {best_entry['z_vs_base']:.1f}; naming "
                       f"needs z >= {record['thresholds']['z_name']:g} and a loss reduction of at least "
-                      f"{100 * record['thresholds']['min_improvement']:.0f} %)")  # fmt: skip
+                      f"{100 * record['thresholds']['min_improvement']:.0f} %, or of "
+                      f"{100 * record['thresholds'].get('consistent_gain', 0):.0f} % with the same effect in every "
+                      "maneuver)")  # fmt: skip
     named = record["named"]
     tests = record.get("tests", [])
-    gain = ", ".join(f"{100 * t['gain']:.0f} % below {t['against']} (z = {t['z']:.1f})" for t in tests)
+    gain = ", ".join(f"{100 * t['gain']:.0f} % below {t['against']} (z = {t['z']:.1f}"
+                     + (f"; the same in every maneuver: spread {t['spread']:.2f}" if t.get("spread") is not None else "")
+                     + ")" for t in tests)  # fmt: skip
     if record["status"] == "named":
         text = " and ".join(_fmt_effect(e) for e in named) + f" explains the gap: held-out prediction loss {gain}"
         if shrink is not None:

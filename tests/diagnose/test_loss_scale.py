@@ -65,16 +65,17 @@ def test_a_noisy_channel_does_not_drown_an_effect_in_another():
     gains = {}
     reports = {}
     for how in ("sensor", "residual"):
-        opts = DiagnoseOptions(loss_scale=how, tube_horizon=0.0, box_cases=1)
+        # (the relevance threshold this test was made for; the default is tuned by the protocol)
+        opts = DiagnoseOptions(loss_scale=how, tube_horizon=0.0, box_cases=1, min_improvement=0.4, max_spread=0.0)
         rep = rc.diagnose(m, suite, effects=effects, fit_params=False, options=opts, progress=False)
         entry = next(e for e in rep.ranked_effects if e["label"] == "input_offset(u)")
         gains[how] = entry["prediction_gain"]
         reports[how] = rep
         assert rep.base["loss_scale"]["method"] == how
     # with the sensor noise as the unit, x1's unexplained errors hold most of the loss: the offset gains little
-    assert gains["sensor"] < DiagnoseOptions().min_improvement
+    assert gains["sensor"] < 0.4
     rep = reports["residual"]
-    assert gains["residual"] >= DiagnoseOptions().min_improvement
+    assert gains["residual"] >= 0.4
     assert rep.status == "named" and [(e["effect"], e["target"]) for e in rep.named] == [("input_offset", "u")]
     assert abs(rep.named[0]["params"]["c"] - 0.1) < 0.01
     scale, sigma = np.array(rep.base["loss_scale"]["per_output"]), np.array(rep.base["noise_sigma"])
