@@ -89,7 +89,7 @@ def test_protocol_smoke_two_effects(tmp_path, nominal):
     again = protocol_eval.diagnose_job((specs[0], str(tmp_path), nominal, FIT, opts, False))
     assert again["cpu_seconds"] == rows[0]["cpu_seconds"]  # read back, not recomputed
     choice = protocol_eval.choose_thresholds(rows, tmp_path)
-    assert set(choice["chosen"]) == {"z_name", "min_improvement", "z_separate", "consistent_gain", "max_spread"}
+    assert set(choice["chosen"]) == {"z_name", "min_improvement", "z_separate"}
     assert len(choice["grid"]) > 100
     # the re-decision with the defaults reproduces the stored decision
     d = protocol_eval.redecide(rows[0], tmp_path)
