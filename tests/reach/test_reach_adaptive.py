@@ -132,3 +132,19 @@ def test_adaptive_rejects_streaming():
     with pytest.raises(rc.OptionsError, match="streamed"):
         rc.reach_run(vanderpol(), VDP_X0, 1.0, options=rc.ReachOptions(algorithm="adaptive"),
                      stream=lambda *a: None)  # fmt: skip
+
+
+def test_lineages_stop_restarting_where_restarts_only_postpone_the_error(monkeypatch):
+    """Laub-Loomis W = 0.1: restarting from a halved start set lowers the error rate where the parent got stuck by
+    only ~18 %, so the lineage rule (geometric mean of those ratios over RESTART_FEEDBACK) stops after a restart
+    or two; with the rule off the same run uses every split it is given."""
+    import reachconf.reach_adaptive as ra
+    from reachconf.models import laub_loomis
+
+    x0 = np.array([1.2, 1.05, 1.5, 2.4, 1.0, 0.1, 0.45])
+    X0 = rc.Interval(x0 - 0.1, x0 + 0.1)
+    tube = rc.reach(laub_loomis(), X0, 20.0, options=rc.ReachOptions(algorithm="adaptive"))
+    assert tube.splits <= 4 and tube.bounds()[:, 1, 3].max() < 5.0
+    monkeypatch.setattr(ra, "RESTART_FEEDBACK", 2.0)
+    off = rc.reach(laub_loomis(), X0, 20.0, options=rc.ReachOptions(algorithm="adaptive", max_splits=12))
+    assert off.splits >= 6 > tube.splits  # 7: all the per-lineage shares of 12 allow
