@@ -150,7 +150,8 @@ class AdaptiveReach(ReachAlgorithm):
         exploding set can allocate.
     budget_retries : int, default 2
         When the abstraction error cannot be bounded (the set explodes), the
-        reach runs again from the start with half the error budget, up to
+        reach runs again from the start with half the error budget and a
+        quarter of the splits (:data:`reachconf.reach_adaptive.RETRY_SPLITS`), up to
         this many times (0: no retry); the budgets tried are in
         ``tube.log.budgets_tried``.  Measured: the coupled Van der Pol (T = 7)
         fails at t = 6.6 s with 0.7 and is verified with 0.35.

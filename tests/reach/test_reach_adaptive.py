@@ -89,6 +89,8 @@ def test_adaptive_retries_with_half_the_budget_when_the_error_cannot_be_bounded(
         rc.reach(vanderpol(), VDP_X0, times, options=once)
     tube = rc.reach(vanderpol(), VDP_X0, times, options=rc.ReachOptions(algorithm=rc.AdaptiveReach(error_budget=5.0)))
     assert list(tube.log.budgets_tried) == [5.0, 2.5, 1.25]  # two retries (the default), the last one kept
+    # each retry may split a quarter as often (RETRY_SPLITS): 256, 64, 16
+    assert tube.meta["options"]["max_splits"] == 16 and tube.splits <= 16
     assert "after the error could not be bounded with 5, 2.5" in tube.log.summary()
     assert tube.bounds()[:, 1, 1].max() < 2.9  # and tight: the true largest y from VDP_X0 is about 2.70
     # the kept run is sound: every sampled trajectory lies in its time-point set at every sample
