@@ -259,7 +259,7 @@ def bench_adaptive_heldout(repeat):
             print(f"{name:56s} ReachError: {str(res)[:160]}")
             continue
         print(f"{name:56s} {cpu:9.3f}   max {model.state_names[i]} = {res.bounds()[:, 1, i].max():.4f}; "
-              f"{res.log.steps} steps, splits {res.splits}, budgets {list(res.log.budgets_tried)}")
+              f"{res.log.steps} steps, splits {res.splits}, budgets {[float(b) for b in res.log.budgets_tried]}")
 
 
 def main(argv=None):
