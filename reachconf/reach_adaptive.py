@@ -81,8 +81,9 @@ RESTART_GAIN = 0.95
 RESTART_W = 0.5
 #: A lineage's restarts must lower the error rate, where their parents asked for the split, to this fraction of the
 #: parents' rate or less (geometric mean over the lineage's restarts); else no branch of that lineage restarts again
-#: (its restarts only postponed the problem).  Measured means (default budget): Van der Pol mu = 1 0.42-0.65,
-#: mu = 2 0.33-0.67, coupled Van der Pol 0.64-0.78 (one lineage 1.06); Laub-Loomis W = 0.05 0.88, W = 0.1 0.82.
+#: (its restarts only postponed the problem).  Measured running means at the judged restarts: Van der Pol mu = 1
+#: 0.42-0.65, mu = 2 0.33-0.67; coupled Van der Pol 1.06 (budget 0.7), 0.64-0.78 (budget 0.35); Laub-Loomis
+#: W = 0.05 0.88, W = 0.1 0.82.
 RESTART_FEEDBACK = 0.8
 #: Window (fraction of the horizon) over which error rates are averaged for that comparison.
 RESTART_WINDOW = 0.01
