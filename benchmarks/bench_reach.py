@@ -6,6 +6,7 @@ and final width, next to Flow* 2.1.0's CPU times measured on this machine type
 
     python benchmarks/bench_reach.py [--repeat 3] [--profile]
     python benchmarks/bench_reach.py --adaptive   # default-vs-tuned table (algorithm="adaptive")
+    python benchmarks/bench_reach.py --adaptive-heldout   # adaptive on instances not used to tune it
 
 The first run of a fresh checkout also compiles the kernels and models
 (printed separately as "warm-up"); the figures are for warm caches.
@@ -232,13 +233,47 @@ def bench_adaptive(repeat):
     return rows
 
 
+def heldout_instances():
+    """``(name, model, X0, horizon, state index)``: instances not used to choose the adaptive algorithm's rules."""
+    from reachconf.models import coupled_vanderpol
+
+    x0 = np.array([1.2, 1.05, 1.5, 2.4, 1.0, 0.1, 0.45])
+    return [
+        ("vanderpol mu=0.5 [1.25,1.55]x[2.35,2.45] T=7", vanderpol(0.5), rc.Interval([1.25, 2.35], [1.55, 2.45]), 7.0, 1),
+        ("vanderpol mu=1.5 [1.4,1.7]x[2.35,2.45] T=8", vanderpol(1.5), rc.Interval([1.4, 2.35], [1.7, 2.45]), 8.0, 1),
+        ("vanderpol mu=2 [1.0,1.2]x[2.0,2.1] T=8", vanderpol(2.0), rc.Interval([1.0, 2.0], [1.2, 2.1]), 8.0, 1),
+        ("vanderpol mu=1 [1.0,1.4]x[2.2,2.4] T=7", vanderpol(1.0), rc.Interval([1.0, 2.2], [1.4, 2.4]), 7.0, 1),
+        ("coupled vanderpol mu=1, 2nd box [1.3,1.6]x[2.3,2.4] T=7", coupled_vanderpol(1.0),
+         rc.Interval([1.25, 2.35, 1.3, 2.3], [1.55, 2.45, 1.6, 2.4]), 7.0, 3),
+        ("laub_loomis W=0.02, T=20", laub_loomis(), rc.Interval(x0 - 0.02, x0 + 0.02), 20.0, 3),
+        ("laub_loomis W=0.08, T=20", laub_loomis(), rc.Interval(x0 - 0.08, x0 + 0.08), 20.0, 3),
+    ]  # fmt: skip
+
+
+def bench_adaptive_heldout(repeat):
+    """The untouched adaptive algorithm on :func:`heldout_instances`: CPU s, largest value of the state, splits."""
+    print(f"{'instance':56s} {'adaptive':>9s}   (CPU s, best of {repeat}, warm; largest value of the state)")
+    for name, model, X0, horizon, i in heldout_instances():
+        cpu, _, res = _timed(lambda m=model, X=X0, T=horizon: rc.reach(m, X, T, options=ADAPTIVE), repeat)
+        if isinstance(res, rc.ReachError):
+            print(f"{name:56s} ReachError: {str(res)[:160]}")
+            continue
+        print(f"{name:56s} {cpu:9.3f}   max {model.state_names[i]} = {res.bounds()[:, 1, i].max():.4f}; "
+              f"{res.log.steps} steps, splits {res.splits}, budgets {[float(b) for b in res.log.budgets_tried]}")
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--profile", action="store_true", help="profile the Van der Pol run (cProfile)")
     parser.add_argument("--adaptive", action="store_true",
                         help="only the default-vs-tuned table (algorithm='adaptive' against the hand-tuned settings)")
+    parser.add_argument("--adaptive-heldout", action="store_true",
+                        help="only algorithm='adaptive' on instances not used to choose its rules")
     args = parser.parse_args(argv)
+    if args.adaptive_heldout:
+        bench_adaptive_heldout(args.repeat)
+        return
     if args.adaptive:
         bench_adaptive(args.repeat)
         return

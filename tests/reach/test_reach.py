@@ -123,6 +123,21 @@ def test_vanderpol_adaptive_sound_with_splits(vdp_runs):
     _assert_tube_contains(tube, X, td, Xd)
 
 
+@pytest.mark.slow
+def test_vanderpol_mu2_adaptive_defaults_sound_and_verified():
+    """Van der Pol mu = 2 (issue 16): the untouched adaptive algorithm splits its way through the fast phases of
+    the relaxation oscillation (about 256 pieces, ~40 s); 200 trajectories lie in every time-point set and every
+    dense sample in its time-interval set, and y stays below 4.0 (the true largest y is about 3.82)."""
+    X0 = rc.Interval([1.55, 2.35], [1.85, 2.45])
+    times = np.round(np.arange(0.0, 8.0 + 1e-9, 0.1), 10)
+    model = vanderpol(2.0)
+    X, td, Xd = _simulate_many(model, X0, times, None, None, 200, np.random.default_rng(RNG_SEED + 7))
+    tube = rc.reach(model, X0, times, options=rc.ReachOptions(algorithm="adaptive"))
+    assert tube.splits > 64  # more than the old default allowed
+    _assert_tube_contains(tube, X, td, Xd)
+    assert tube.bounds()[:, 1, 1].max() < 4.0
+
+
 # ------------------------------------------------- open-loop bicycle with W
 BIKE_X0 = rc.Interval([0.0, -0.05, -0.01, 9.9, -0.02, -0.01], [0.1, 0.05, 0.01, 10.1, 0.02, 0.01])
 BIKE_W = rc.Interval([-0.2, -0.3, -0.3], [0.2, 0.3, 0.3])

@@ -89,6 +89,8 @@ def test_adaptive_retries_with_half_the_budget_when_the_error_cannot_be_bounded(
         rc.reach(vanderpol(), VDP_X0, times, options=once)
     tube = rc.reach(vanderpol(), VDP_X0, times, options=rc.ReachOptions(algorithm=rc.AdaptiveReach(error_budget=5.0)))
     assert list(tube.log.budgets_tried) == [5.0, 2.5, 1.25]  # two retries (the default), the last one kept
+    # each retry may split a quarter as often (RETRY_SPLITS): 256, 64, 16
+    assert tube.meta["options"]["max_splits"] == 16 and tube.splits <= 16
     assert "after the error could not be bounded with 5, 2.5" in tube.log.summary()
     assert tube.bounds()[:, 1, 1].max() < 2.9  # and tight: the true largest y from VDP_X0 is about 2.70
     # the kept run is sound: every sampled trajectory lies in its time-point set at every sample
@@ -132,3 +134,19 @@ def test_adaptive_rejects_streaming():
     with pytest.raises(rc.OptionsError, match="streamed"):
         rc.reach_run(vanderpol(), VDP_X0, 1.0, options=rc.ReachOptions(algorithm="adaptive"),
                      stream=lambda *a: None)  # fmt: skip
+
+
+def test_lineages_stop_restarting_where_restarts_only_postpone_the_error(monkeypatch):
+    """Laub-Loomis W = 0.1: restarting from a halved start set lowers the error rate where the parent got stuck by
+    only ~18 %, so the lineage rule (geometric mean of those ratios over RESTART_FEEDBACK) stops after a restart
+    or two; with the rule off the same run uses every split it is given."""
+    import reachconf.reach_adaptive as ra
+    from reachconf.models import laub_loomis
+
+    x0 = np.array([1.2, 1.05, 1.5, 2.4, 1.0, 0.1, 0.45])
+    X0 = rc.Interval(x0 - 0.1, x0 + 0.1)
+    tube = rc.reach(laub_loomis(), X0, 20.0, options=rc.ReachOptions(algorithm="adaptive"))
+    assert tube.splits <= 4 and tube.bounds()[:, 1, 3].max() < 5.0
+    monkeypatch.setattr(ra, "RESTART_FEEDBACK", 2.0)
+    off = rc.reach(laub_loomis(), X0, 20.0, options=rc.ReachOptions(algorithm="adaptive", max_splits=12))
+    assert off.splits >= 6 > tube.splits  # 7: all the per-lineage shares of 12 allow
