@@ -80,6 +80,13 @@ def decision_record(decision, named, alternatives, options) -> dict:
     return rec
 
 
+def _route(th) -> str:
+    """The consistency route of the naming rule, when it is open (``max_spread > 0``)."""
+    if not th.get("max_spread"):
+        return ""
+    return f", or of {100 * th['consistent_gain']:.0f} % with the same effect in every maneuver"
+
+
 def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
     """One paragraph: what explains the gap, with intervals; or which explanations the data cannot separate."""
     pre = "INTERRUPTED, partial result: " if interrupted else ""
@@ -89,9 +96,7 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
         return pre + (f"no effect in the library explains the gap (best: {best_entry['label']}, held-out prediction "
                       f"loss {-100 * best_entry['prediction_gain']:+.0f} %, z = {best_entry['z_vs_base']:.1f}; naming "
                       f"needs z >= {record['thresholds']['z_name']:g} and a loss reduction of at least "
-                      f"{100 * record['thresholds']['min_improvement']:.0f} %, or of "
-                      f"{100 * record['thresholds'].get('consistent_gain', 0):.0f} % with the same effect in every "
-                      "maneuver)")  # fmt: skip
+                      f"{100 * record['thresholds']['min_improvement']:.0f} %{_route(record['thresholds'])})")  # fmt: skip
     named = record["named"]
     tests = record.get("tests", [])
     gain = ", ".join(f"{100 * t['gain']:.0f} % below {t['against']} (z = {t['z']:.1f}"
