@@ -60,3 +60,19 @@ def toml_text(doc: dict) -> str:
     tables = [f"[{json.dumps(k)}]\n" + "\n".join(f"{json.dumps(a)} = {toml_value(b)}" for a, b in v.items())
               for k, v in doc.items() if isinstance(v, dict)]  # fmt: skip
     return "\n".join(plain + tables) + "\n"
+
+
+@pytest.fixture
+def scored():
+    """``scored(parts, losses)``: a diagnosis model scored on held-out windows, from ``[(effect, target), ...]``
+    and its per-window losses (``reachconf.diagnose.select.Scored``)."""
+    import numpy as np
+
+    from reachconf.diagnose import EFFECTS
+    from reachconf.diagnose.fit import Candidate
+    from reachconf.diagnose.select import Scored
+
+    def make(parts, losses):
+        return Scored(Candidate(tuple((EFFECTS[e], t) for e, t in parts)), np.asarray(losses, float))
+
+    return make

@@ -27,11 +27,9 @@ from __future__ import annotations
 import numpy as np
 
 from reachconf.diagnose.fit import fit_candidate
+from reachconf.diagnose.select import MIN_PARTS, fold_start, maneuver_parts
 
 __all__ = ["relative_spread", "group_sizes", "model_spread"]
-
-#: Fewer groups (or cases) than this: no spread is measured (the route stays closed).
-MIN_PARTS = 3
 
 
 def relative_spread(estimates, null: float) -> float:
@@ -41,13 +39,6 @@ def relative_spread(estimates, null: float) -> float:
         return np.inf
     m = abs(float(np.mean(d)))
     return float(np.std(d, ddof=1) / m) if m > 0 else np.inf
-
-
-def _parts(data) -> list:
-    groups = {}
-    for d in data:
-        groups.setdefault(d.group, []).append(d)
-    return list(groups.values()) if len(groups) >= MIN_PARTS else [[d] for d in data]
 
 
 def group_sizes(base_model, scored, data, sigma, options, cache) -> dict:
@@ -72,9 +63,7 @@ def group_sizes(base_model, scored, data, sigma, options, cache) -> dict:
         ``(effect, target) -> list`` of estimates, one per group (per case
         when there are fewer than three groups); empty with too few parts.
     """
-    from reachconf.diagnose.select import fold_start
-
-    parts = _parts(data)
+    parts = maneuver_parts(data)
     if len(parts) < MIN_PARTS:
         return {}
     start = fold_start(scored)

@@ -120,11 +120,16 @@ class Candidate:
         """The (effect name, target) pairs: candidates are nested when one's keys contain the other's."""
         return frozenset((e.name, t) for e, t in self.parts)
 
+    @property
+    def structural(self) -> tuple:
+        """The (effect name, target) pairs of its model-kind effects: the key of its compiled model (empty: none)."""
+        return tuple((e.name, t) for e, t in self.parts if e.kind in ("param", "state"))
+
 
 def _model_for(base, cand: Candidate, cache: dict):
     """The base model with the candidate's model-kind effects applied (compiled once, cached)."""
     model = base
-    key = tuple((e.name, t) for e, t in cand.parts if e.kind in ("param", "state"))
+    key = cand.structural
     if not key:
         return base, ()
     if key not in cache:

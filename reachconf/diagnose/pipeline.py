@@ -177,8 +177,8 @@ def _which(model, prepared, candidates, folds, clusters, sigma, fit_names, optio
         nxt = []
         for e, tgt in candidates:
             cand = Candidate(first.candidate.parts + ((e, tgt),))
-            structural = tuple((x.name, t) for x, t in cand.parts if x.kind in ("param", "state"))
-            if (e.name, tgt) in first.candidate.keys or cand.keys in have or (structural and structural not in cache):
+            new_code = cand.structural and cand.structural not in cache
+            if (e.name, tgt) in first.candidate.keys or cand.keys in have or new_code:
                 continue  # (no new model code is generated for this screen)
             bar.set_postfix_str(f"next to {first.label}: {e.name}({tgt})")
             nxt.append(fit_candidate(base_full.model, cand, prepared, sigma, (), options, cache, start=st0, max_nfev=20))

@@ -40,7 +40,7 @@ import numpy as np
 from reachconf.diagnose.fit import Candidate, FitResult, fit_candidate, window_losses
 
 __all__ = ["Scored", "fold_assignment", "window_clusters", "paired_test", "cross_fit", "decide", "full_fit",
-           "fold_start"]
+           "fold_start", "maneuver_parts"]
 
 
 @dataclass
@@ -249,6 +249,18 @@ def fold_start(scored: Scored) -> dict:
     return {k: (tuple(np.mean(v, axis=0)) if isinstance(k, tuple) else float(np.mean(v))) for k, v in start.items()}
 
 
+#: Fewer maneuver groups than this: the parts are the cases; fewer parts: no per-part fits.
+MIN_PARTS = 3
+
+
+def maneuver_parts(data) -> list:
+    """The cases split by maneuver group; one case per part when there are fewer than ``MIN_PARTS`` groups."""
+    groups = {}
+    for d in data:
+        groups.setdefault(d.group, []).append(d)
+    return list(groups.values()) if len(groups) >= MIN_PARTS else [[d] for d in data]
+
+
 def full_fit(base_model, scored: Scored, data, sigma, fit_names, options, cache, spread: bool = True) -> FitResult:
     """The chosen candidate fitted on all cases, for its parameters and their intervals.
 
@@ -258,11 +270,8 @@ def full_fit(base_model, scored: Scored, data, sigma, fit_names, options, cache,
     start = fold_start(scored)
     fit = fit_candidate(base_model, scored.candidate, data, sigma, fit_names, options, cache, start=start)
     if spread:
-        groups = {}
-        for d in data:
-            groups.setdefault(d.group, []).append(d)
-        parts = list(groups.values()) if len(groups) >= 3 else [[d] for d in data]
-        if len(parts) >= 3:
+        parts = maneuver_parts(data)
+        if len(parts) >= MIN_PARTS:
             st = {**fit.base_params, **fit.effect_params}
             for sub in parts:
                 fg = fit_candidate(base_model, scored.candidate, sub, sigma, fit_names, options, cache, start=st)

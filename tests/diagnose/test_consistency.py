@@ -9,7 +9,7 @@ from reachconf.diagnose import EFFECTS, DiagnoseOptions
 from reachconf.diagnose.consistency import model_spread, relative_spread
 from reachconf.diagnose.effects import Effect
 from reachconf.diagnose.fit import Candidate
-from reachconf.diagnose.select import Scored, decide
+from reachconf.diagnose.select import decide
 from reachconf.io import TestCase, TestSuite
 from reachconf.model.simulate import simulate
 
@@ -32,19 +32,17 @@ def test_effect_null_values_are_checked():
                null=(0.0, 1.0))  # fmt: skip
     with pytest.raises(rc.OptionsError, match="max_spread"):
         DiagnoseOptions(max_spread=-0.1)
+    with pytest.raises(rc.OptionsError, match="consistent_gain"):
+        DiagnoseOptions(consistent_gain=float("nan"))
     with pytest.raises(rc.OptionsError, match="pair_next"):
         DiagnoseOptions(pair_next=-1)
 
 
-def _scored(parts, losses):
-    return Scored(Candidate(tuple((EFFECTS[e], t) for e, t in parts)), np.asarray(losses, float))
-
-
-def test_a_small_significant_gain_is_named_only_when_the_effect_is_the_same_in_every_group():
+def test_a_small_significant_gain_is_named_only_when_the_effect_is_the_same_in_every_group(scored):
     rng = np.random.default_rng(1)
     clusters = np.repeat(np.arange(12), 4)
-    base = _scored([], 10 + rng.uniform(0, 1, 48))
-    bias = _scored([("output_offset", "p")], base.losses * (0.85 + 0.01 * rng.standard_normal(48)))  # 15 %, z >> 3
+    base = scored([], 10 + rng.uniform(0, 1, 48))
+    bias = scored([("output_offset", "p")], base.losses * (0.85 + 0.01 * rng.standard_normal(48)))  # 15 %, z >> 3
     opts = DiagnoseOptions(z_name=3.0, min_improvement=0.4, consistent_gain=0.1, max_spread=0.1)
     asked = []
 
@@ -64,9 +62,9 @@ def test_a_small_significant_gain_is_named_only_when_the_effect_is_the_same_in_e
     closed = DiagnoseOptions(z_name=3.0, min_improvement=0.4, consistent_gain=0.1, max_spread=0.0)
     asked.clear()
     assert decide(base, [bias], clusters, closed, spread=spread(0.0))["status"] == "none" and not asked
-    tiny = _scored([("output_offset", "p")], base.losses * 0.95)  # 5 %: below consistent_gain, spread not asked
+    tiny = scored([("output_offset", "p")], base.losses * 0.95)  # 5 %: below consistent_gain, spread not asked
     assert decide(base, [tiny], clusters, opts, spread=spread(0.0))["status"] == "none" and not asked
-    big = _scored([("output_offset", "p")], base.losses * 0.3)  # relevant anyway: spread not asked
+    big = scored([("output_offset", "p")], base.losses * 0.3)  # relevant anyway: spread not asked
     assert decide(base, [big], clusters, opts, spread=spread(0.9))["status"] == "named" and not asked
 
 

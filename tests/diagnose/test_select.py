@@ -5,9 +5,8 @@ import numpy as np
 import pytest
 
 import reachconf as rc
-from reachconf.diagnose import EFFECTS, DiagnoseOptions
-from reachconf.diagnose.fit import Candidate
-from reachconf.diagnose.select import Scored, decide, fold_assignment, paired_test, window_clusters
+from reachconf.diagnose import DiagnoseOptions
+from reachconf.diagnose.select import decide, fold_assignment, paired_test, window_clusters
 from reachconf.io import TestCase, TestSuite
 from reachconf.model.simulate import simulate
 from reachconf_kernels.signals import first_order_lag, transport_delay
@@ -43,33 +42,28 @@ def test_few_cases_are_cut_into_blocks_of_windows():
     assert len(set(window_clusters([5] * 12, min_clusters=8))) == 12  # enough cases: one cluster each
 
 
-def _scored(label_parts, losses):
-    cand = Candidate(tuple((EFFECTS[e], t) for e, t in label_parts))
-    return Scored(cand, np.asarray(losses, float))
-
-
-def test_decide_names_admissible_models_and_reports_inseparable_ones():
+def test_decide_names_admissible_models_and_reports_inseparable_ones(scored):
     rng = np.random.default_rng(0)
     clusters = np.repeat(np.arange(10), 5)
-    base = _scored([], 10 + rng.uniform(0, 1, 50))
-    lag = _scored([("actuator_lag", "u")], base.losses * 0.2)
-    delay = _scored([("dead_time", "u")], lag.losses * (1 + 0.02 * rng.standard_normal(50)))  # as good as lag
-    tiny = _scored([("output_scale", "p")], base.losses * 0.97)  # significant but not relevant
+    base = scored([], 10 + rng.uniform(0, 1, 50))
+    lag = scored([("actuator_lag", "u")], base.losses * 0.2)
+    delay = scored([("dead_time", "u")], lag.losses * (1 + 0.02 * rng.standard_normal(50)))  # as good as lag
+    tiny = scored([("output_scale", "p")], base.losses * 0.97)  # significant but not relevant
     opts = DiagnoseOptions(z_name=3.0, min_improvement=0.3, z_separate=2.0)
     d = decide(base, [lag, delay, tiny], clusters, opts)
     assert d["status"] == "indistinguishable" and "output_scale(p)" not in d["admissible"]
     assert {d["chosen"].label, d["alternatives"][0][0].label} == {"actuator_lag(u)", "dead_time(u)"}
     # a clearly worse dead time is ruled out
-    delay_bad = _scored([("dead_time", "u")], base.losses * 0.45)
+    delay_bad = scored([("dead_time", "u")], base.losses * 0.45)
     d = decide(base, [lag, delay_bad, tiny], clusters, opts)
     assert d["status"] == "named" and d["chosen"].label == "actuator_lag(u)" and not d["alternatives"]
     # a pair must beat each of its parts: adding the irrelevant sensor gain to the lag is not named
-    pair = _scored([("actuator_lag", "u"), ("output_scale", "p")], lag.losses * 0.95)
+    pair = scored([("actuator_lag", "u"), ("output_scale", "p")], lag.losses * 0.95)
     d = decide(base, [lag, delay_bad, tiny, pair], clusters, opts)
     assert d["chosen"].label == "actuator_lag(u)"
     # ... a second real effect is
-    off = _scored([("input_offset", "u")], base.losses * 0.6)
-    pair2 = _scored([("actuator_lag", "u"), ("input_offset", "u")], lag.losses * 0.3)
+    off = scored([("input_offset", "u")], base.losses * 0.6)
+    pair2 = scored([("actuator_lag", "u"), ("input_offset", "u")], lag.losses * 0.3)
     d = decide(base, [lag, delay_bad, off, pair2], clusters, opts)
     assert d["status"] == "named" and d["chosen"].label == "actuator_lag(u) + input_offset(u)"
     # nothing relevant: none

@@ -10,20 +10,16 @@ import pytest
 import reachconf as rc
 from reachconf.diagnose import EFFECTS, DiagnoseOptions
 from reachconf.diagnose.fit import Candidate
-from reachconf.diagnose.select import Scored, decide, paired_test
+from reachconf.diagnose.select import decide, paired_test
 from reachconf.io import TestCase, TestSuite
 
 
-def _scored(parts, losses):
-    return Scored(Candidate(tuple((EFFECTS[e], t) for e, t in parts)), np.asarray(losses, float))
-
-
-def test_an_alternative_the_held_out_test_rules_out_is_kept_when_the_data_cannot_separate_it():
+def test_an_alternative_the_held_out_test_rules_out_is_kept_when_the_data_cannot_separate_it(scored):
     rng = np.random.default_rng(1)
     clusters = np.repeat(np.arange(12), 4)
-    base = _scored([], 20 + rng.uniform(0, 1, 48))
-    drag = _scored([("drag", "vx")], base.losses * 0.3)
-    offset = _scored([("input_offset", "ax")], drag.losses * (1.08 + 0.01 * rng.standard_normal(48)))
+    base = scored([], 20 + rng.uniform(0, 1, 48))
+    drag = scored([("drag", "vx")], base.losses * 0.3)
+    offset = scored([("input_offset", "ax")], drag.losses * (1.08 + 0.01 * rng.standard_normal(48)))
     opts = DiagnoseOptions(z_name=3.0, min_improvement=0.3, z_separate=1.5)
     t = paired_test(drag.losses, offset.losses, clusters)
     assert t["z"] > 5 and t["se"] > 0  # the held-out test alone prefers the drag clearly
