@@ -101,7 +101,7 @@ class DiagnoseOptions:
         Number of held-out cases whose minimal boxes are computed before/after.
     tube_horizon : float, default 2.0
         Horizon (s) of the before/after reach tubes of one held-out case (0: none).
-    loss_scale : {"sensor", "residual"}, default "sensor"
+    loss_scale : {"sensor", "residual", "case"}, default "sensor"
         Scale of each output channel in the prediction loss (the standard
         deviation of the Gaussian likelihood that every fit minimises and
         every held-out comparison sums).  "sensor": the sensor noise
@@ -113,7 +113,13 @@ class DiagnoseOptions:
         squares): each channel counts by its own misfit level, so a channel
         whose predictions carry large errors no effect in the library explains
         (e.g. a velocity integrated from a noisy measured acceleration) does
-        not drown the others.  See :func:`reachconf.diagnose.fit.residual_scale`.
+        not drown the others.  See :func:`reachconf.diagnose.scales.residual_scale`.
+        "case": the sensor noise per channel, and each case (run) weighted by
+        the inverse of the refitted base model's root-mean-square prediction
+        residual on it (at least 1 noise unit), after which the base model is
+        refitted: a few runs the base cannot follow (large slip) do not
+        dominate the fits and the held-out comparisons.  See
+        :func:`reachconf.diagnose.scales.case_weights`.
     """
 
     window: float = 1.0
@@ -184,4 +190,4 @@ class DiagnoseOptions:
 #: parameter interval methods (:attr:`DiagnoseOptions.interval_method`)
 INTERVAL_METHODS = ("spread", "case", "group")
 #: per-channel scales of the prediction loss (:attr:`DiagnoseOptions.loss_scale`)
-LOSS_SCALES = ("sensor", "residual")
+LOSS_SCALES = ("sensor", "residual", "case")
