@@ -84,7 +84,7 @@ def test_a_noisy_channel_does_not_drown_an_effect_in_another():
 
 
 def test_loss_scale_option_is_checked():
-    assert DiagnoseOptions().loss_scale == "sensor"
+    assert DiagnoseOptions().loss_scale == "case"
     with pytest.raises(OptionsError, match="loss_scale"):
         DiagnoseOptions(loss_scale="gaussian")
 
