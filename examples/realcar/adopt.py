@@ -1,9 +1,10 @@
 """The engineer's two-stage workflow on the real car: adopt what the clean run's diagnosis found, then diagnose anew.
 
 Stage 1 diagnoses the clean run (:func:`diagnosis.run_diagnosis`).  Its named
-effects — or, when none is named, its best held-out model (on this car
-``input_scale(ax) + tire_fiala(axles)``: 24 % below the refitted base, z 6.4,
-below the naming rule's 30 %) — are *adopted* by :func:`adopt`: fitted jointly
+effects — or, when none is named, its best held-out model if that is
+significant (on this car ``input_scale(ax) + tire_fiala(axles)``: 24 % below
+the refitted base, z 6.4, below the naming rule's 30 %) — are *adopted* by
+:func:`adopt`: fitted jointly
 with the base parameters :data:`diagnosis.FIT` on the whole clean run, together
 with the car's own steering timing.  The model-kind effects (the tyre) are built
 into the model with their fitted parameters; the input and output effects (the
@@ -102,11 +103,15 @@ class Adopted:
 
 
 def found_parts(report) -> list:
-    """What the clean run's diagnosis found: its named effects, else the parts of its best held-out model."""
+    """What the clean run's diagnosis found: its named effects, else the parts of its best held-out model
+    when that beats the base significantly (paired z at least the naming rule's ``z_name``; relevance aside)."""
     if report.named:
         return [(e["effect"], e["target"]) for e in report.named]
     best = next((e for e in report.ranked_effects if e.get("held_out_loss") is not None), None)
-    return [] if best is None else [tuple(p) for p in best["parts"]]
+    z_name = getattr(report, "decision", {}).get("thresholds", {}).get("z_name", 3.0)
+    if best is None or not best.get("z_vs_base", 0.0) >= z_name:
+        return []
+    return [tuple(p) for p in best["parts"]]
 
 
 def adopt(model, cols, report, fit_params, options=None, timing=True) -> Adopted:

@@ -219,9 +219,8 @@ def main(argv=None):
     lines = [f"# Injected effects (loss_scale = {args.loss_scale}{', two-stage' if adopted else ''})", ""]
     if adopted:
         a = adopted.to_dict()
-        lines += [f"Adopted from the clean run: {' + '.join(a['parts']) or 'nothing'} "
-                  + "; ".join(f"{k}: " + ", ".join(f"{p} = {v:.4g}" for p, v in pv.items())
-                              for k, pv in a["effect_params"].items())
+        found = [f"{k}: " + ", ".join(f"{p} = {v:.4g}" for p, v in pv.items()) for k, pv in a["effect_params"].items()]
+        lines += ["Adopted from the clean run: " + "; ".join(found or ["no effect"])
                   + "; " + ", ".join(f"{k} = {v:.4g}" for k, v in a["params"].items())
                   + f"; steering timing {a['timing']:+.4f} s", ""]  # fmt: skip
     lines += ["| injected | named | first | moved / injected | error | best rank | its held-out gain (z) |",

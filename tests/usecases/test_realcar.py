@@ -352,6 +352,21 @@ def test_adopted_corrections_undo_an_injection_and_the_timing_shifts_the_steerin
     assert np.array_equal(c["ax"], cols["ax"])
 
 
+def test_adopted_are_the_named_effects_else_a_significant_best_model():
+    from types import SimpleNamespace
+
+    adopt = _adopt_module()
+    th = {"thresholds": {"z_name": 3.0}}
+    best = {"parts": [["input_scale", "ax"], ["tire_fiala", "axles"]], "held_out_loss": 1.0, "z_vs_base": 6.4}
+    named = [{"effect": "input_offset", "target": "delta"}]
+    assert adopt.found_parts(SimpleNamespace(named=named, ranked_effects=[best], decision=th)) == [("input_offset", "delta")]
+    assert adopt.found_parts(SimpleNamespace(named=[], ranked_effects=[best], decision=th)) == [
+        ("input_scale", "ax"), ("tire_fiala", "axles")]  # fmt: skip
+    weak = {**best, "z_vs_base": 1.9}
+    unscored = {"parts": [["dead_time", "delta"]], "held_out_loss": None}
+    assert adopt.found_parts(SimpleNamespace(named=[], ranked_effects=[unscored, weak], decision=th)) == []
+
+
 @needs_data
 def test_adoption_fits_the_found_effects_and_the_signed_steering_timing_on_a_short_stretch():
     """The first 120 s: adopting input_scale(ax) on the clean and on injected stretches (ax scale 0.8, a 0.05 s
