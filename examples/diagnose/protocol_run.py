@@ -67,6 +67,8 @@ def run_protocol(args) -> int:
     defaults = DiagnoseOptions()
     options = {f.name: getattr(defaults, f.name) for f in dataclasses.fields(defaults)}
     options.update(TUNING_RUN_THRESHOLDS)  # the tuning suites' run; the test set is run with the choice
+    if getattr(args, "loss_scale", None):
+        options["loss_scale"] = args.loss_scale
     result = {"nominal": nominal, "fit_params": list(FIT), "options": options, "test_seed": args.test_seed}
     md = ["# Diagnosis validation protocol", ""]
     with Pool(args.workers, getattr(args, "scheduler", None)) as pool:  # the run's one pool

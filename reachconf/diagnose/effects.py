@@ -279,6 +279,9 @@ register_effect(Effect("output_scale", "output", ("k",), lambda x: (1.0,), lambd
 register_effect(Effect("tire_saturation", "param", ("F",), lambda x: (10.0,), lambda x: ((0.5,), (200.0,)),
                        model=_tire_saturation_model, targets=_stiffness_params,
                        description="force terms linear in stiffness c saturate at F: c s -> c s / sqrt(1 + (c s / F)^2)"))  # fmt: skip
-register_effect(Effect("drag", "state", ("c_d",), lambda x: (0.0,), lambda x: ((-0.05,), (0.05,)),
+# c_d >= 0: a drag only opposes the motion (a negative c_d would be a thrust growing with speed, which at nearly
+# constant speed mimics any accelerating offset); the start is inside (a least-squares start on the bound stays there)
+register_effect(Effect("drag", "state", ("c_d",), lambda x: (0.002,), lambda x: ((0.0,), (0.05,)),
                        model=_drag_model, targets=_velocity_states,
-                       description="quadratic speed term v' -= c_d v |v| on a velocity state", null=(0.0,)))  # fmt: skip
+                       description="quadratic speed term v' -= c_d v |v| (c_d >= 0) on a velocity state",
+                       null=(0.0,)))  # fmt: skip

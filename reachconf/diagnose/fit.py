@@ -8,7 +8,8 @@ simulated without disturbances (compiled RK4, :func:`reachconf_kernels.integrate
 all windows in one call) and compared with the measurements, each residual
 divided by the output's noise level (estimated from third differences) or, with
 ``DiagnoseOptions.loss_scale = "residual"``, by the base model's own misfit
-level per channel (:func:`residual_scale`).  The
+level per channel, or with ``"case"`` also weighted per case by it
+(:mod:`reachconf.diagnose.scales`).  The
 base model's parameters are fitted jointly with the effect's, kept near their
 nominal values by a Gaussian prior (relative standard deviation ``prior``) and
 hard bounds, so that they cannot soak up the effect.
@@ -29,7 +30,7 @@ from reachconf_kernels.integrate import rk4_windows
 
 __all__ = ["noise_level", "PreparedCase", "prepare", "Candidate", "FitResult",
            "fit_candidate", "transformed_case", "transformed_signals", "window_residuals", "window_losses",
-           "window_counts", "prediction_cost", "residual_scale"]
+           "window_counts", "prediction_cost"]
 
 
 def noise_level(Y: np.ndarray) -> np.ndarray:
@@ -72,6 +73,7 @@ class PreparedCase:
     case: object
     offsets: np.ndarray | None = None  # compared steps within a window (1 ... length)
     idx: np.ndarray | None = None  # sample index of every compared prediction, window after window
+    weight: float = 1.0  # multiplies the case's normalised residuals (``loss_scale = "case"``)
 
     @property
     def per_window(self) -> int:
@@ -210,7 +212,7 @@ def window_residuals(model, cand: Candidate, theta_eff: dict, data, sigma, subst
         Yp = Xp[:, plain] if plain is not None else evaluate_outputs(model, Xp, U[d.idx])
         if not np.all(np.isfinite(Yp)):
             Yp = np.where(np.isfinite(Yp), Yp, 1e6)
-        out.append(((Yp - Ym) / sigma).reshape(-1))
+        out.append(((Yp - Ym) * (d.weight / sigma)).reshape(-1))
     return np.concatenate(out)
 
 
@@ -439,31 +441,3 @@ def prediction_cost(fit: FitResult, data, sigma, options: DiagnoseOptions) -> fl
     """Mean squared normalised multi-step prediction residual on ``data`` (held-out cases)."""
     r = window_residuals(fit.model, fit.candidate, fit.effect_params, data, sigma, options.substeps)
     return float(np.mean(r**2))
-
-
-def residual_scale(fit: FitResult, data, sigma, options: DiagnoseOptions) -> np.ndarray:
-    """Per-channel scale of the prediction loss from a fitted model's misfit (``loss_scale = "residual"``).
-
-    The root-mean-square multi-step prediction residual of ``fit`` on
-    ``data`` per output channel, in the outputs' units, at least ``sigma``
-    (the sensor noise).  Used as the standard deviations of the Gaussian
-    likelihood, it is the variance estimate of a two-step (feasible)
-    weighted least squares: a channel counts by its own misfit level.
-
-    Parameters
-    ----------
-    fit : FitResult
-        The fitted (base) model.
-    data : list of PreparedCase
-    sigma : ndarray, shape (p,)
-        The sensor noise per output (the floor and the unit of the residuals).
-    options : DiagnoseOptions
-
-    Returns
-    -------
-    ndarray, shape (p,)
-    """
-    sigma = np.asarray(sigma, dtype=float)
-    r = window_residuals(fit.model, fit.candidate, fit.effect_params, data, sigma, options.substeps)
-    rms = np.sqrt(np.mean(r.reshape(-1, sigma.size) ** 2, axis=0)) * sigma
-    return np.maximum(np.where(np.isfinite(rms), rms, sigma), sigma)

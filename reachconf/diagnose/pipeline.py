@@ -31,6 +31,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from itertools import combinations
 
 import numpy as np
@@ -39,8 +40,13 @@ from tqdm.auto import tqdm
 from reachconf.conformance.trace import trace_disturbances
 from reachconf.diagnose.consistency import group_sizes, model_spread
 from reachconf.diagnose.effects import EFFECTS, Effect
-from reachconf.diagnose.fit import Candidate, fit_candidate, noise_level, prepare, residual_scale, window_counts
-from reachconf.diagnose.options import DiagnoseOptions
+from reachconf.diagnose.fit import (
+    Candidate,
+    fit_candidate,
+    noise_level,
+    prepare,
+    window_counts,
+)
 from reachconf.diagnose.howfar import (
     actuator_vs_process,
     box_shrink,
@@ -52,8 +58,10 @@ from reachconf.diagnose.howfar import (
     reachset_W,
 )
 from reachconf.diagnose.locate import locate_gap
+from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.diagnose.probes import band_shares, separating_probe
 from reachconf.diagnose.report import GapReport
+from reachconf.diagnose.scales import case_weights, residual_scale
 from reachconf.diagnose.select import (
     cross_fit,
     decide,
@@ -65,7 +73,12 @@ from reachconf.diagnose.select import (
 )
 from reachconf.diagnose.separable import mimic_loss
 from reachconf.diagnose.sparse import feature_dictionary, sparse_features
-from reachconf.diagnose.verdict import decision_record, effect_entries, model_entry, verdict_text
+from reachconf.diagnose.verdict import (
+    decision_record,
+    effect_entries,
+    model_entry,
+    verdict_text,
+)
 from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.cases import TestSuite
 from reachconf.sets.core import Interval
@@ -132,6 +145,11 @@ def _which(model, prepared, candidates, folds, clusters, sigma, fit_names, optio
     base_full = fit_candidate(model, Candidate(()), prepared, sigma, fit_names, options, cache)
     if options.loss_scale == "residual":
         sigma = residual_scale(base_full, prepared, sigma, options)
+        base_full = fit_candidate(model, Candidate(()), prepared, sigma, fit_names, options, cache,
+                                  start=dict(base_full.base_params))  # fmt: skip
+    elif options.loss_scale == "case":
+        w = case_weights(base_full, prepared, sigma, options)
+        prepared[:] = [replace(d, weight=float(wi)) for d, wi in zip(prepared, w)]
         base_full = fit_candidate(model, Candidate(()), prepared, sigma, fit_names, options, cache,
                                   start=dict(base_full.base_params))  # fmt: skip
     state["scale"] = sigma
@@ -397,7 +415,8 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
                  "nominal": {k2: float(model.params[k2]) for k2 in fit_names}, "held_out_loss": base_sc.total,
                  "box": {ch: [float(a), float(b)] for ch, a, b in zip(channels, base_box[0], base_box[1])},
                  "V": [[float(a), float(b)] for a, b in zip(V.lo, V.hi)], "noise_sigma": sigma.tolist(),
-                 "loss_scale": {"method": options.loss_scale, "per_output": np.asarray(scale).tolist()},
+                 "loss_scale": {"method": options.loss_scale, "per_output": np.asarray(scale).tolist(),
+                                "per_case": {d.name: float(d.weight) for d in prepared}},
                  "folds": k_folds, "clusters": int(clusters.max()) + 1 if clusters.size else 0,
                  "cpu_seconds_by_step": timings}  # fmt: skip
     split = {"train": [d.name for d in train], "test": [d.name for d in test],

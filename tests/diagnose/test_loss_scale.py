@@ -12,7 +12,8 @@ import pytest
 
 import reachconf as rc
 from reachconf.diagnose import DiagnoseOptions
-from reachconf.diagnose.fit import Candidate, fit_candidate, noise_level, prepare, residual_scale
+from reachconf.diagnose.fit import Candidate, fit_candidate, noise_level, prepare
+from reachconf.diagnose.scales import case_weights, residual_scale
 from reachconf.errors import OptionsError
 from reachconf.io import TestCase, TestSuite
 from reachconf.model.simulate import simulate
@@ -83,6 +84,59 @@ def test_a_noisy_channel_does_not_drown_an_effect_in_another():
 
 
 def test_loss_scale_option_is_checked():
-    assert DiagnoseOptions().loss_scale == "sensor"
+    assert DiagnoseOptions().loss_scale == "case"
     with pytest.raises(OptionsError, match="loss_scale"):
         DiagnoseOptions(loss_scale="gaussian")
+
+
+def _suite_with_wild_runs(n=6, wild=(0, 1), offset=0.1, noise=0.002, seed=10):
+    """x2 lane with an input offset in every run; in the ``wild`` runs also a large term no candidate explains."""
+    m = _two_lanes()
+    cases = []
+    for i in range(n):
+        rng = np.random.default_rng(seed + i)
+        t = np.round(np.arange(0, 8.0 + 1e-9, 0.01), 10)
+        a = np.sin(2 * np.pi * rng.uniform(0.1, 0.4) * t + rng.uniform(0, 6))
+        u = sum(np.sin(2 * np.pi * f * t + rng.uniform(0, 6)) for f in rng.uniform(0.2, 1.5, size=3))
+        extra = 3.0 * np.sin(2 * np.pi * 0.7 * t) ** 3 if i in wild else 0.0  # plant term the model lacks
+        X = simulate(m, [0.0, 0.0], t, inputs=np.c_[a, u + offset + extra], substeps=2)
+        Y = X + rng.normal(scale=noise, size=X.shape)
+        cases.append(TestCase(f"c{i}", f"g{i % 3}", t, np.c_[a, u], Y, ("a", "u"), ("x1", "x2")))
+    return m, TestSuite(cases)
+
+
+def test_case_weights_are_the_inverse_misfit_per_run_floored_at_one():
+    m, suite = _suite_with_wild_runs(offset=0.0, wild=(1,))
+    opts = DiagnoseOptions()
+    data = [prepare(m, c, opts) for c in suite]
+    sigma = noise_level(np.vstack([d.Y for d in data]))
+    fit = fit_candidate(m, Candidate(()), data, sigma, (), opts, {})
+    w = case_weights(fit, data, sigma, opts)
+    assert w.shape == (len(data),) and np.all((w > 0) & (w <= 1))
+    # runs the model follows to the noise keep weight 1; the wild run counts by its own misfit
+    assert np.all(w[[0, 2, 3, 4, 5]] > 0.5) and w[1] < 0.05
+    # by hand: root-mean-square of the wild run's normalised window residuals
+    from reachconf.diagnose.fit import window_residuals
+
+    r = window_residuals(fit.model, fit.candidate, fit.effect_params, data[1:2], sigma, opts.substeps)
+    np.testing.assert_allclose(w[1], 1.0 / np.sqrt(np.mean(r**2)), rtol=1e-9)
+
+
+def test_a_few_wild_runs_do_not_drown_an_effect_present_in_every_run():
+    m, suite = _suite_with_wild_runs()
+    effects = [("input_offset", "u"), ("actuator_lag", "u"), ("dead_time", "u"), ("input_offset", "a")]
+    reports = {}
+    for how in ("sensor", "case"):
+        opts = DiagnoseOptions(loss_scale=how, tube_horizon=0.0, box_cases=1)
+        reports[how] = rc.diagnose(m, suite, effects=effects, fit_params=False, options=opts, progress=False)
+    gain = {h: next(e for e in r.ranked_effects if e["label"] == "input_offset(u)")["prediction_gain"]
+            for h, r in reports.items()}  # fmt: skip
+    # squared errors: the two wild runs hold nearly all of the loss, and the offset explains little of it
+    assert gain["sensor"] < 0.3 and reports["sensor"].status != "named"
+    rep = reports["case"]
+    assert gain["case"] > 0.3
+    assert rep.status == "named" and [(e["effect"], e["target"]) for e in rep.named] == [("input_offset", "u")]
+    assert abs(rep.named[0]["params"]["c"] - 0.1) < 0.01
+    weights = rep.base["loss_scale"]["per_case"]
+    assert set(weights) == {c.name for c in suite} and max(weights["c0"], weights["c1"]) < min(
+        weights[f"c{i}"] for i in range(2, 6))

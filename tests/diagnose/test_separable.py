@@ -109,3 +109,15 @@ def test_mimic_loss_is_what_one_effect_cannot_reproduce_of_the_other_on_the_data
         assert res["params"]["drag(vx)"][0] > 0
     # at 10 m/s the drag reproduces the offset up to a tiny share; over 5-20 m/s it cannot
     assert share[False] < 1e-3 and share[True] > 0.1, share
+
+
+def test_a_drag_only_decelerates_so_it_cannot_stand_in_for_an_accelerating_offset():
+    # at constant speed a braking offset and a drag are indistinguishable (above); a drag cannot push forward
+    assert EFFECTS["drag"].bounds(None)[0] == (0.0,)
+    suite = _suite(offset=+0.3, sweep=False)
+    rep = rc.diagnose(_longitudinal(), suite, effects=["drag", "input_offset"], fit_params=False, progress=False,
+                      options=DiagnoseOptions(tube_horizon=0.0))  # fmt: skip
+    assert rep.decision["status"] == "named" and rep.decision["model"] == "input_offset(ax)", rep.verdict
+    assert abs(rep.named[0]["params"]["c"] - 0.3) < 0.02
+    drag = next(e for e in rep.ranked_effects if e["label"] == "drag(vx)")
+    assert drag["params_by_effect"]["drag(vx)"]["c_d"] == pytest.approx(0.0, abs=1e-6)
