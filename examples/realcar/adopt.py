@@ -25,7 +25,7 @@ signed timing, which :meth:`Adopted.apply` removes by shifting the record.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -114,6 +114,21 @@ def found_parts(report) -> list:
     return [tuple(p) for p in best["parts"]]
 
 
+def _loss_scale(model, prep, sigma, fit_params, options, cache, start):
+    """The loss scale of the diagnosis (``options.loss_scale``) from the refitted base model, as the pipeline does:
+    ``(sigma, weigh)`` with ``weigh(prepared cases)`` giving them the per-case weights ("case"; else unchanged)."""
+    if options.loss_scale == "sensor":
+        return sigma, lambda p: p
+    from reachconf.diagnose import scales
+
+    base = fit_candidate(model, Candidate(()), prep, sigma, fit_params, options, cache,
+                         start={k: v for k, v in start.items() if isinstance(k, str)})  # fmt: skip
+    if options.loss_scale == "residual":
+        return scales.residual_scale(base, prep, sigma, options), lambda p: p
+    w = [float(x) for x in scales.case_weights(base, prep, sigma, options)]
+    return sigma, lambda p: [replace(d, weight=wi) for d, wi in zip(p, w)]
+
+
 def adopt(model, cols, report, fit_params, options=None, timing=True) -> Adopted:
     """Adopt what ``report`` (the clean run's diagnosis) found: one joint fit on the whole clean run.
 
@@ -128,6 +143,8 @@ def adopt(model, cols, report, fit_params, options=None, timing=True) -> Adopted
     fit_params : sequence of str
         Base parameters fitted jointly with the adopted effects.
     options : reachconf.DiagnoseOptions, optional
+        Its ``loss_scale`` weighs the fit as the diagnosis weighs its fits (per channel or per case, from
+        the refitted base model's misfit on the clean run; the advanced-steering fit keeps those weights).
     timing : bool, default True
         Fit and adopt the car's own (signed) steering timing too (see the module docstring).
 
@@ -149,6 +166,8 @@ def adopt(model, cols, report, fit_params, options=None, timing=True) -> Adopted
     prep = [prepare(model, c, options) for c in make_suite(cols)]
     sigma = noise_level(np.vstack([d.Y for d in prep]))
     cache = {}
+    sigma, weigh = _loss_scale(model, prep, sigma, tuple(fit_params), options, cache, start)
+    prep = weigh(prep)
     fit = fit_candidate(model, Candidate(effects), prep, sigma, tuple(fit_params), options, cache, start=start)
     own = 0.0
     if timing and ("dead_time", "delta") not in parts:
@@ -157,7 +176,7 @@ def adopt(model, cols, report, fit_params, options=None, timing=True) -> Adopted
         adv = dict(cols)
         t = np.asarray(cols["t"], float)
         adv["delta"] = np.interp(t + TIMING_MARGIN, t, repair_glitches(cols["delta"])[0])
-        prep_adv = [prepare(model, c, options) for c in make_suite(adv)]
+        prep_adv = weigh([prepare(model, c, options) for c in make_suite(adv)])
         st = {**fit.base_params, **fit.effect_params, ("dead_time", "delta"): (TIMING_MARGIN,)}
         fit = fit_candidate(model, Candidate(((EFFECTS["dead_time"], "delta"),) + effects), prep_adv, sigma,
                             tuple(fit_params), options, cache, start=st)  # fmt: skip

@@ -21,7 +21,7 @@ relative to the clean run's own fit of the same effect (the real car has
 biases and delays of its own).  As a command, the clean run and every
 injection are diagnosed and judged::
 
-    python examples/realcar/withheld.py --data ../shared/data/realcar --out DIR [--loss-scale residual]
+    python examples/realcar/withheld.py --data ../shared/data/realcar --out DIR [--loss-scale sensor]
         [--only yaw_bias ax_scale] [--value yaw_bias=0.02] [--stop 120] [--signal-only] [--stage2]
 
 writes ``DIR/withheld.json`` and ``DIR/withheld.md``.  With ``--stage2`` (the
@@ -156,7 +156,8 @@ def main(argv=None):
     ap.add_argument("--out", required=True)
     ap.add_argument("--only", nargs="*", choices=sorted(INJECTIONS), default=list(INJECTIONS))
     ap.add_argument("--value", action="append", default=[], help="NAME=VALUE: another injected value")
-    ap.add_argument("--loss-scale", default="sensor", choices=("sensor", "residual"))
+    ap.add_argument("--loss-scale", default=None, choices=("sensor", "residual", "case"),
+                    help="DiagnoseOptions.loss_scale (default: the library's default)")
     ap.add_argument("--stop", type=float, default=None, help="only the first STOP seconds of the run")
     ap.add_argument("--signal-only", action="store_true", help="signal candidates only (no tyre models)")
     ap.add_argument("--stage2", action="store_true",
@@ -172,7 +173,7 @@ def main(argv=None):
     stop = None if args.stop is None else cols["t"][0] + args.stop
     half = np.array([h for _, h in noise_V(cols).values()])
     V = rc.Interval(-half, half)
-    opts = rc.DiagnoseOptions(loss_scale=args.loss_scale)
+    opts = rc.DiagnoseOptions(**({"loss_scale": args.loss_scale} if args.loss_scale else {}))
     effects = SIGNAL_CANDIDATES if args.signal_only else CANDIDATES
 
     def diag(c):
@@ -213,10 +214,11 @@ def main(argv=None):
               f"({100 * r['relative_error']:+.0f} %), best rank {r['best_rank']} {r['best_model']} gain {r['best_gain']} "
               f"z {r['best_z']} ({w:.0f} s wall, {cpu:.0f} s CPU)",
               flush=True)  # fmt: skip
-    result = {"loss_scale": args.loss_scale, "stop": args.stop, "signal_only": args.signal_only, "values": values,
+    result = {"loss_scale": opts.loss_scale, "min_improvement": opts.min_improvement, "stop": args.stop, "signal_only": args.signal_only, "values": values,
               "stage2": args.stage2, "adopted": adopted.to_dict() if adopted else None, "rows": rows}  # fmt: skip
     atomic_write(out / "withheld.json", json_text(result))
-    lines = [f"# Injected effects (loss_scale = {args.loss_scale}{', two-stage' if adopted else ''})", ""]
+    lines = [f"# Injected effects (loss_scale = {opts.loss_scale}, min_improvement = {opts.min_improvement:g}"
+             f"{', two-stage' if adopted else ''})", ""]  # fmt: skip
     if adopted:
         a = adopted.to_dict()
         found = [f"{k}: " + ", ".join(f"{p} = {v:.4g}" for p, v in pv.items()) for k, pv in a["effect_params"].items()]
