@@ -21,10 +21,15 @@ relative to the clean run's own fit of the same effect (the real car has
 biases and delays of its own).  As a command, the clean run and every
 injection are diagnosed and judged::
 
-    python examples/realcar/withheld.py --data ../shared/data/realcar --out DIR [--loss-scale residual]
-        [--only yaw_bias ax_scale] [--value yaw_bias=0.02] [--stop 120] [--signal-only]
+    python examples/realcar/withheld.py --data ../shared/data/realcar --out DIR [--loss-scale sensor]
+        [--only yaw_bias ax_scale] [--value yaw_bias=0.02] [--stop 120] [--signal-only] [--stage2]
 
-writes ``DIR/withheld.json`` and ``DIR/withheld.md``.
+writes ``DIR/withheld.json`` and ``DIR/withheld.md``.  With ``--stage2`` (the
+two-stage workflow of ``adopt.py``), the clean run's findings are adopted into
+the model (fitted on the clean run, the car's own steering timing included)
+and the clean run and every injection are diagnosed again with that model,
+its parameters fixed, and the signal candidates; the injections are judged
+against the clean run's stage-2 fit, and the adoption is recorded.
 """
 
 from __future__ import annotations
@@ -126,19 +131,21 @@ def judge(report, clean, truth, tolerance=0.3) -> dict:
     moved = found / ref - 1 if multiplicative else found - ref
     want = size - 1 if multiplicative else size
     error = (moved - want) / abs(want)
-    rank = next((i + 1 for i, e in enumerate(e for e in report.ranked_effects if e.get("held_out_loss") is not None)
-                 if (eff, tgt) in {tuple(p) for p in e.get("parts", [])}), None)  # fmt: skip
+    scored = [e for e in report.ranked_effects if e.get("held_out_loss") is not None]
+    rank, best = next(((i + 1, e) for i, e in enumerate(scored) if (eff, tgt) in {tuple(p) for p in e.get("parts", [])}),
+                      (None, {}))  # fmt: skip
     return {"truth": f"{eff}({tgt}) {param} = {size:g}", "status": report.decision.get("status"),
             "named": " + ".join(f"{e}({t})" for e, t in named) or "none", "named_first": first,
             "from_named_model": entry is not None, "found": found, "clean": ref, "moved": moved, "injected": want,
             "relative_error": error, "sized": first and abs(error) <= tolerance, "best_rank": rank,
+            "best_model": best.get("label"), "best_gain": best.get("prediction_gain"), "best_z": best.get("z_vs_base"),
             "verdict": report.verdict}  # fmt: skip
 
 
 def main(argv=None):
     here = Path(__file__).resolve().parent
     from data import make_suite, noise_V, read_run
-    from diagnosis import CANDIDATES, run_diagnosis
+    from diagnosis import CANDIDATES, FIT, run_diagnosis
 
     import reachconf as rc
     from reachconf.io import atomic_write, json_text
@@ -149,9 +156,12 @@ def main(argv=None):
     ap.add_argument("--out", required=True)
     ap.add_argument("--only", nargs="*", choices=sorted(INJECTIONS), default=list(INJECTIONS))
     ap.add_argument("--value", action="append", default=[], help="NAME=VALUE: another injected value")
-    ap.add_argument("--loss-scale", default="sensor", choices=("sensor", "residual"))
+    ap.add_argument("--loss-scale", default=None, choices=("sensor", "residual", "case"),
+                    help="DiagnoseOptions.loss_scale (default: the library's default)")
     ap.add_argument("--stop", type=float, default=None, help="only the first STOP seconds of the run")
     ap.add_argument("--signal-only", action="store_true", help="signal candidates only (no tyre models)")
+    ap.add_argument("--stage2", action="store_true",
+                    help="adopt the clean run's findings into the model, then diagnose with it (adopt.py)")
     args = ap.parse_args(argv)
     values = dict(VALUES)
     for item in args.value:
@@ -163,7 +173,7 @@ def main(argv=None):
     stop = None if args.stop is None else cols["t"][0] + args.stop
     half = np.array([h for _, h in noise_V(cols).values()])
     V = rc.Interval(-half, half)
-    opts = rc.DiagnoseOptions(loss_scale=args.loss_scale)
+    opts = rc.DiagnoseOptions(**({"loss_scale": args.loss_scale} if args.loss_scale else {}))
     effects = SIGNAL_CANDIDATES if args.signal_only else CANDIDATES
 
     def diag(c):
@@ -175,6 +185,25 @@ def main(argv=None):
     clean.to_json(out / "clean.json")
     rows = {"clean": {"verdict": clean.verdict, "wall": w, "cpu": cpu, "loss_scale": clean.base.get("loss_scale")}}
     print(f"clean ({w:.0f} s wall, {cpu:.0f} s CPU): {clean.verdict}", flush=True)
+    adopted = None
+    if args.stage2:
+        from adopt import adopt
+
+        w, cpu = time.perf_counter(), time.process_time()
+        clip = (lambda c: {k: v[cols["t"] <= stop] for k, v in c.items()}) if stop is not None else (lambda c: c)
+        adopted = adopt(single_track(), clip(cols), clean, FIT, options=opts)
+        print(f"adopted ({time.perf_counter() - w:.0f} s wall): {adopted.to_dict()}", flush=True)
+
+        def diag(c):  # stage 2: the adopted model, its parameters fixed, the signal candidates
+            w, cpu = time.perf_counter(), time.process_time()
+            rep = run_diagnosis(adopted.model, make_suite(adopted.apply(c), stop=stop), V, effects=SIGNAL_CANDIDATES,
+                                options=opts, fit_params=())  # fmt: skip
+            return rep, time.perf_counter() - w, time.process_time() - cpu
+
+        clean, w, cpu = diag(cols)
+        clean.to_json(out / "clean_stage2.json")
+        rows["clean_stage2"] = {"verdict": clean.verdict, "wall": w, "cpu": cpu, "adopted": adopted.to_dict()}
+        print(f"clean, stage 2 ({w:.0f} s wall, {cpu:.0f} s CPU): {clean.verdict}", flush=True)
     for name in args.only:
         inj, truth = inject(cols, name, values[name])
         rep, w, cpu = diag(inj)
@@ -182,17 +211,27 @@ def main(argv=None):
         rows[name] = {**judge(rep, clean, truth), "wall": w, "cpu": cpu}
         r = rows[name]
         print(f"{name}: named {r['named']} (first: {r['named_first']}), moved {r['moved']:.4g} vs {r['injected']:.4g} "
-              f"({100 * r['relative_error']:+.0f} %), best rank {r['best_rank']} ({w:.0f} s wall, {cpu:.0f} s CPU)",
+              f"({100 * r['relative_error']:+.0f} %), best rank {r['best_rank']} {r['best_model']} gain {r['best_gain']} "
+              f"z {r['best_z']} ({w:.0f} s wall, {cpu:.0f} s CPU)",
               flush=True)  # fmt: skip
-    result = {"loss_scale": args.loss_scale, "stop": args.stop, "signal_only": args.signal_only, "values": values,
-              "rows": rows}  # fmt: skip
+    result = {"loss_scale": opts.loss_scale, "min_improvement": opts.min_improvement, "stop": args.stop, "signal_only": args.signal_only, "values": values,
+              "stage2": args.stage2, "adopted": adopted.to_dict() if adopted else None, "rows": rows}  # fmt: skip
     atomic_write(out / "withheld.json", json_text(result))
-    lines = [f"# Injected effects (loss_scale = {args.loss_scale})", "",
-             "| injected | named | first | moved / injected | error | best rank |", "|---|---|---|---|---|---|"]
+    lines = [f"# Injected effects (loss_scale = {opts.loss_scale}, min_improvement = {opts.min_improvement:g}"
+             f"{', two-stage' if adopted else ''})", ""]  # fmt: skip
+    if adopted:
+        a = adopted.to_dict()
+        found = [f"{k}: " + ", ".join(f"{p} = {v:.4g}" for p, v in pv.items()) for k, pv in a["effect_params"].items()]
+        lines += ["Adopted from the clean run: " + "; ".join(found or ["no effect"])
+                  + "; " + ", ".join(f"{k} = {v:.4g}" for k, v in a["params"].items())
+                  + f"; steering timing {a['timing']:+.4f} s", ""]  # fmt: skip
+    lines += ["| injected | named | first | moved / injected | error | best rank | its held-out gain (z) |",
+              "|---|---|---|---|---|---|---|"]  # fmt: skip
     for name in args.only:
         r = rows[name]
+        gain = "" if r["best_gain"] is None else f"{100 * r['best_gain']:.0f} % ({r['best_z']:.1f}): {r['best_model']}"
         lines.append(f"| {r['truth']} | {r['named']} | {r['named_first']} | {r['moved']:.4g} / {r['injected']:.4g} "
-                     f"| {100 * r['relative_error']:+.0f} % | {r['best_rank']} |")  # fmt: skip
+                     f"| {100 * r['relative_error']:+.0f} % | {r['best_rank']} | {gain} |")  # fmt: skip
     atomic_write(out / "withheld.md", "\n".join(lines) + "\n")
     return 0
 

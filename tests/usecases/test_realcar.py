@@ -325,3 +325,112 @@ def test_injected_effect_is_named_first_and_sized_within_30_percent(clean_diagno
     j = withheld.judge(diagnosis.run_diagnosis(single_track(), data.make_suite(inj), V), clean, truth)
     assert j["named_first"], j["verdict"]
     assert j["sized"], j
+
+
+def _adopt_module():
+    _realcar_modules()
+    import adopt
+
+    return adopt
+
+
+def test_adopted_corrections_undo_an_injection_and_the_timing_shifts_the_steering():
+    adopt = _adopt_module()
+    _, _, withheld = _realcar_modules()
+    t = np.arange(0, 20, 0.01)
+    cols = {"t": t, "delta": 0.1 * np.sin(0.8 * t), "ax": np.cos(t), "omega": 0.2 * np.sin(0.5 * t),
+            "vx": 20 + t, "vy": 0 * t, "ay": np.sin(t)}  # fmt: skip
+    rec, _ = withheld.inject(cols, "ax_scale", 0.8)
+    a = adopt.Adopted(None, [("input_scale", "ax")], {}, {}, [("input_scale", "ax", (0.8,))], 0.0)
+    np.testing.assert_allclose(a.apply(rec)["ax"], cols["ax"])
+    rec, _ = withheld.inject(cols, "yaw_bias", 0.02)
+    b = adopt.Adopted(None, [("output_offset", "omega")], {}, {}, [("output_offset", "omega", (0.02,))], 0.0)
+    np.testing.assert_allclose(b.apply(rec)["omega"], cols["omega"])
+    # a lead of 0.03 s removed: the shifted record at t is the recorded one at t + 0.03
+    c = adopt.Adopted(None, [], {}, {}, [], -0.03).apply(cols)
+    np.testing.assert_allclose(c["delta"][:-10], 0.1 * np.sin(0.8 * (t[:-10] + 0.03)), atol=1e-6)
+    assert np.array_equal(c["ax"], cols["ax"])
+
+
+def test_adopted_are_the_named_effects_else_a_significant_best_model():
+    from types import SimpleNamespace
+
+    adopt = _adopt_module()
+    th = {"thresholds": {"z_name": 3.0}}
+    best = {"parts": [["input_scale", "ax"], ["tire_fiala", "axles"]], "held_out_loss": 1.0, "z_vs_base": 6.4}
+    named = [{"effect": "input_offset", "target": "delta"}]
+    assert adopt.found_parts(SimpleNamespace(named=named, ranked_effects=[best], decision=th)) == [("input_offset", "delta")]
+    assert adopt.found_parts(SimpleNamespace(named=[], ranked_effects=[best], decision=th)) == [
+        ("input_scale", "ax"), ("tire_fiala", "axles")]  # fmt: skip
+    weak = {**best, "z_vs_base": 1.9}
+    unscored = {"parts": [["dead_time", "delta"]], "held_out_loss": None}
+    assert adopt.found_parts(SimpleNamespace(named=[], ranked_effects=[unscored, weak], decision=th)) == []
+
+
+@needs_data
+def test_adoption_fits_the_found_effects_and_the_signed_steering_timing_on_a_short_stretch():
+    """The first 120 s: adopting input_scale(ax) on the clean and on injected stretches (ax scale 0.8, a 0.05 s
+    steering dead time) moves the fitted scale by the injected ratio and the signed timing by the delay."""
+    from reachconf.models import single_track
+
+    adopt = _adopt_module()
+    data, diagnosis, withheld = _realcar_modules()
+    cols = data.read_run(REAL)
+    short = {k: v[cols["t"] <= cols["t"][0] + SHORT_SECONDS] for k, v in cols.items()}
+
+    from types import SimpleNamespace
+
+    # what a diagnosis found: input_scale(ax) named
+    Found = SimpleNamespace(named=[{"effect": "input_scale", "target": "ax"}], ranked_effects=[], base={"params": {}})
+
+    car = single_track()
+    clean = adopt.adopt(car, short, Found, diagnosis.FIT)
+    assert clean.parts == [("input_scale", "ax")] and set(clean.params) == set(diagnosis.FIT)
+    assert abs(clean.timing) < 0.06  # the car's own steering timing
+    scaled = adopt.adopt(car, withheld.inject(short, "ax_scale", 0.8)[0], Found, diagnosis.FIT, timing=False)
+    ratio = scaled.effect_params["input_scale(ax)"]["k"] / clean.effect_params["input_scale(ax)"]["k"]
+    assert ratio == pytest.approx(0.8, rel=0.01)  # measured: 0.80004
+    delayed = adopt.adopt(car, withheld.inject(short, "dead_time", 0.05)[0], Found, diagnosis.FIT)
+    assert delayed.timing - clean.timing == pytest.approx(0.05, rel=0.1)  # measured: 0.04998 (clean: -0.015 s)
+
+
+#: the options the two-stage checks were measured with (the defaults before loss_scale="case", min_improvement 0.4;
+#: with those, the clean run names the tyre alone and an ax scale of 1.1 is not named in either stage)
+TWO_STAGE_OPTIONS = {"loss_scale": "sensor", "min_improvement": 0.3}
+
+
+@pytest.fixture(scope="module")
+def two_stages():
+    """The clean run diagnosed, its findings adopted (adopt.py) and the stage-2 diagnosis of a recording with them."""
+    import reachconf as rc
+    from reachconf.models import single_track
+
+    adopt = _adopt_module()
+    data, diagnosis, withheld = _realcar_modules()
+    opts = rc.DiagnoseOptions(**TWO_STAGE_OPTIONS)
+    cols = data.read_run(REAL)
+    V = _V(data, cols)
+    clean = diagnosis.run_diagnosis(single_track(), data.make_suite(cols), V, options=opts)
+    adopted = adopt.adopt(single_track(), cols, clean, diagnosis.FIT, options=opts)
+
+    def diag(c):
+        return diagnosis.run_diagnosis(adopted.model, data.make_suite(adopted.apply(c)), V,
+                                       effects=withheld.SIGNAL_CANDIDATES, fit_params=(), options=opts)  # fmt: skip
+
+    return cols, adopted, diag, diag(cols)
+
+
+@needs_data
+@pytest.mark.slow
+def test_two_stages_name_an_ax_scale_that_one_stage_misses(two_stages):
+    """Measured (whole run, TWO_STAGE_OPTIONS): one stage finds an ax scale of 1.1 exactly but does not name it
+    (23.5 % alone: the car's own scale of 0.96 halves it); with the clean run's input_scale(ax) +
+    tire_fiala(axles) and its steering lead of 0.027 s adopted, it is named first (51 %, z 12.5) and sized exactly."""
+    _, _, withheld = _realcar_modules()
+    cols, adopted, diag, clean2 = two_stages
+    assert adopted.parts == [("input_scale", "ax"), ("tire_fiala", "axles")]
+    assert -0.05 < adopted.timing < 0.0  # the car's own steering lead
+    assert clean2.decision["status"] == "none"
+    inj, truth = withheld.inject(cols, "ax_scale", 1.1)
+    j = withheld.judge(diag(inj), clean2, truth)
+    assert j["named_first"] and j["sized"], j
