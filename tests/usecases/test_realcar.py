@@ -283,21 +283,20 @@ def test_judge_sizes_offsets_additively_and_scales_relative_to_the_clean_fit():
 
 
 #: the slow checks: values other than the example's (withheld.VALUES) and the default checks'.  The steering
-#: and sensor effects the car has no trouble with are named; the others are found (fitted to within 0-30 %, ranked
-#: first or near it) but not *named*: the naming rule asks an effect to remove 30 % of the held-out loss (of
-#: each one-effect part, for a pair), and on this car most of the loss is the car's own misfit (the vx channel
-#: integrating the noisy measured ax; the tyres at high |ay|).  Measured with the example's values and larger ones.
-_NOT_RELEVANT = ("measured (full run, default options): {} fitted to within {} of the truth and ranked {}, but it "
-                 "removes less than the naming rule's 30 % of the held-out loss")  # fmt: skip
+#: offset and the ax scale are named (next to the car's own tyre saturation); the others are found (sized within
+#: 5 % with the default case weights) but not *named*: next to the tyre each removes far less than the naming
+#: rule's 40 % of the remaining held-out loss, most of which is the car's own lateral-velocity misfit.
+_NOT_RELEVANT = ("measured (full run, default options, 25 Nov): {} sized within {} of the truth and ranked {}, "
+                 "but only the car's own tyre saturation is named")  # fmt: skip
 SLOW_CASES = [
     ("steer_offset", 0.01),
     ("ax_scale", 0.9),
     pytest.param("yaw_bias", 0.03, marks=pytest.mark.xfail(reason=_NOT_RELEVANT.format(
-        "a 0.025 (0.06) rad/s bias", "1 % (1 %)", "2nd (1st, paired with input_scale(ax))"), strict=False)),
+        "a 0.025 rad/s bias", "5 %", "2nd"), strict=False)),
     pytest.param("dead_time", 0.05, marks=pytest.mark.xfail(reason=_NOT_RELEVANT.format(
-        "a 0.06 (0.15) s dead time", "29 % (11 %)", "6th (3rd, at 40 %)"), strict=False)),
+        "a 0.06 s dead time", "1 %", "14th"), strict=False)),
     pytest.param("lag", 0.1, marks=pytest.mark.xfail(reason=_NOT_RELEVANT.format(
-        "a 0.08 (0.2) s lag", "21 % (30 %)", "5th (1st, paired with input_scale(ax), at 40 %)"), strict=False)),
+        "a 0.08 s lag", "2 %", "4th"), strict=False)),
 ]
 
 
