@@ -186,31 +186,41 @@ def _which(model, prepared, candidates, folds, clusters, sigma, fit_names, optio
         models.append(cross_fit(model, cand, prepared, folds, sigma, fit_names, options, cache, start=st))
         bar.update(1)
     # a second effect can be masked by a large first one (screened alone, it imitates the first): the effects
-    # screened again next to the best single, the best ``pair_next`` of the new pairs scored as well
+    # screened again next to the best single — and next to a single the best does not beat (z < z_separate: the
+    # data may hold either, e.g. a lag and a dead time) —, the best ``pair_next`` of the new pairs scored as well
     if ranked and options.pair_next > 0:
-        first = ranked[0]
-        have = {m.candidate.keys for m in models}
-        fs = fold_start(first)
-        st0 = {**base_full.base_params, **{k: v for k, v in fs.items() if isinstance(k, tuple)}}
-        nxt = []
-        for e, tgt in candidates:
-            cand = Candidate(first.candidate.parts + ((e, tgt),))
-            new_code = cand.structural and cand.structural not in cache
-            if (e.name, tgt) in first.candidate.keys or cand.keys in have or new_code:
-                continue  # (no new model code is generated for this screen)
-            bar.set_postfix_str(f"next to {first.label}: {e.name}({tgt})")
-            nxt.append(fit_candidate(base_full.model, cand, prepared, sigma, (), options, cache, start=st0, max_nfev=20))
-        nxt.sort(key=lambda f: f.train_cost)
-        for f in nxt[: options.pair_next]:
-            st = {**fs, **f.effect_params}
-            bar.set_postfix_str(f.candidate.label)
-            models.append(cross_fit(model, f.candidate, prepared, folds, sigma, fit_names, options, cache, start=st))
-            single = Candidate(f.candidate.parts[-1:])  # the pair must beat this one too (select.decide)
-            if single.keys not in have:
-                (key1,) = single.keys
-                st1 = {**base_full.base_params, key1: f.effect_params[key1]}
-                models.append(cross_fit(model, single, prepared, folds, sigma, fit_names, options, cache, start=st1))
-                have.add(single.keys)
+        firsts = [ranked[0]] + [m for m in ranked[1:] if len(m.candidate.keys) == 1
+                                and paired_test(ranked[0].losses, m.losses, clusters)["z"] < options.z_separate][:1]
+        for first in firsts:
+            _next_to(first, model, prepared, candidates, folds, sigma, fit_names, options, cache, bar, base_full,
+                     models)  # fmt: skip
+
+
+def _next_to(first, model, prepared, candidates, folds, sigma, fit_names, options, cache, bar, base_full, models):
+    """Screen every candidate next to the single effect ``first``; cross-fit the best ``pair_next`` pairs and
+    their second effect alone (into ``models``)."""
+    have = {m.candidate.keys for m in models}
+    fs = fold_start(first)
+    st0 = {**base_full.base_params, **{k: v for k, v in fs.items() if isinstance(k, tuple)}}
+    nxt = []
+    for e, tgt in candidates:
+        cand = Candidate(first.candidate.parts + ((e, tgt),))
+        new_code = cand.structural and cand.structural not in cache
+        if (e.name, tgt) in first.candidate.keys or cand.keys in have or new_code:
+            continue  # (no new model code is generated for this screen)
+        bar.set_postfix_str(f"next to {first.label}: {e.name}({tgt})")
+        nxt.append(fit_candidate(base_full.model, cand, prepared, sigma, (), options, cache, start=st0, max_nfev=20))
+    nxt.sort(key=lambda f: f.train_cost)
+    for f in nxt[: options.pair_next]:
+        st = {**fs, **f.effect_params}
+        bar.set_postfix_str(f.candidate.label)
+        models.append(cross_fit(model, f.candidate, prepared, folds, sigma, fit_names, options, cache, start=st))
+        single = Candidate(f.candidate.parts[-1:])  # the pair must beat this one too (select.decide)
+        if single.keys not in have:
+            (key1,) = single.keys
+            st1 = {**base_full.base_params, key1: f.effect_params[key1]}
+            models.append(cross_fit(model, single, prepared, folds, sigma, fit_names, options, cache, start=st1))
+            have.add(single.keys)
 
 
 def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True, seed: int = 0, V=None,
