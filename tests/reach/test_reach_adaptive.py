@@ -130,12 +130,6 @@ def test_adaptive_bad_parameters(kw):
         rc.ReachOptions(algorithm=rc.AdaptiveReach(**kw))
 
 
-def test_adaptive_rejects_streaming():
-    with pytest.raises(rc.OptionsError, match="streamed"):
-        rc.reach_run(vanderpol(), VDP_X0, 1.0, options=rc.ReachOptions(algorithm="adaptive"),
-                     stream=lambda *a: None)  # fmt: skip
-
-
 def test_lineages_stop_restarting_where_restarts_only_postpone_the_error(monkeypatch):
     """Laub-Loomis W = 0.1: restarting from a halved start set lowers the error rate where the parent got stuck by
     only ~18 %, so the lineage rule (geometric mean of those ratios over RESTART_FEEDBACK) stops after a restart
