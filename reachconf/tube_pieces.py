@@ -54,6 +54,10 @@ class PieceSets(Sequence):
             self._cache[j] = out
         return out
 
+    def __reduce__(self):
+        # pickled (to or from a worker process) as the plain list of its sets: ``make`` is a closure
+        return (list, (list(self),))
+
     def groups(self):
         """``(indptr, indices)``: the pieces of every entry."""
         return self._indptr, self._indices

@@ -210,7 +210,8 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
     X0 : Interval or Zonotope, optional
         Initial set; default eq. 67, ``X(t_1) ⊕ V`` (:func:`initial_set`).
     options : ReachOptions, optional
-        Default: time step = sample spacing.
+        Default ``ReachOptions()`` (``"adaptive"``: its steps end at every
+        sample time).
     keep_tube : bool
         Keep the reach tube in the result.  False streams the reach: the sets
         are checked chunk by chunk as they are computed and dropped, with the

@@ -72,7 +72,7 @@ def test_streamed_check_of_a_split_reach_is_a_union():
     Y = rc.simulate(m, [1.4, 2.4], t)
     X0 = rc.Interval([1.25, 2.35], [1.55, 2.45])
     V = rc.Interval([-0.01, -0.01], [0.01, 0.01])
-    opts = rc.ReachOptions(tensor_order=3, time_step=0.01, max_error=0.03, max_splits=64)
+    opts = rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.01, max_error=0.03, max_splits=64)
     for shift in (0.0, 0.4):  # inside; partly outside (from some time on)
         case = rc.TestCase("vdp", "g", t, np.zeros((t.size, 0)), Y + shift * (t > 1.5)[:, None], (), m.output_names)
         kept = reachset_conformance(m, case, None, V, X0=X0, options=opts, keep_tube=True)
