@@ -42,10 +42,10 @@ def plot_tube(tube, dims=None, ax=None, color="C0", alpha=0.35, outline=True, la
         raise SetError(f"plot needs two dimensions, got {dims!r}")
     if ax is None:
         _, ax = plt.subplots(figsize=(8, 5))
-    polys = [p.project(idx).polygon() for s in tube.time_interval_sets for p in s.pieces]
+    polys = [p.project(idx).polygon() for p in _pieces(tube.time_interval_sets)]
     ax.add_collection(PolyCollection(polys, facecolors=color, edgecolors="none", alpha=alpha, label=label))
     if outline:
-        outs = [p.project(idx).polygon() for s in tube.time_point_sets for p in s.pieces]
+        outs = [p.project(idx).polygon() for p in _pieces(tube.time_point_sets)]
         ax.add_collection(PolyCollection(outs, facecolors="none", edgecolors=color, linewidths=0.4))
     allpts = np.vstack(polys)
     lo, hi = allpts.min(axis=0), allpts.max(axis=0)
@@ -58,6 +58,14 @@ def plot_tube(tube, dims=None, ax=None, color="C0", alpha=0.35, outline=True, la
     if measured is not None:
         plot_measured(ax, measured, names)
     return ax
+
+
+def _pieces(sets):
+    """The pieces of a list of sets; each stored piece once where the list shares them (an adaptive tube's)."""
+    distinct = getattr(sets, "distinct_pieces", None)
+    if distinct is not None:
+        return distinct()
+    return [p for s in sets for p in s.pieces]
 
 
 def plot_measured(ax, measured, dims, label="measured", **style):

@@ -28,6 +28,7 @@ from reachconf.checks import check_options
 from reachconf.errors import OptionsError, ReachError
 from reachconf.model.core import require_model
 from reachconf.reach_adaptive import run_adaptive
+from reachconf.reach_adaptive_stream import run_adaptive_streamed, streamed_grid
 from reachconf.reach_errors import fixed_step_failure
 from reachconf.reach_options import AdaptiveReach, ReachOptions
 from reachconf.sets.convert import as_zonotope
@@ -41,7 +42,8 @@ __all__ = ["ReachOptions", "reach", "reach_run", "ReachRun", "ReachStopped"]
 # ---------------------------------------------------------------------------
 # argument handling
 # ---------------------------------------------------------------------------
-def _sample_times(times) -> np.ndarray:
+def sample_times(times) -> np.ndarray:
+    """The sample times of ``times`` (a final time ``T``: ``[0, T]``), checked (:class:`ReachError` if bad)."""
     arr = np.asarray(times, dtype=float)
     if arr.ndim == 0:
         if not (math.isfinite(float(arr)) and float(arr) > 0):
@@ -81,7 +83,7 @@ def integration_steps(times, options=None) -> int:
 
     Counted without building the step grid (a tiny ``time_step`` is caught before it allocates).
     """
-    samples = _sample_times(times)
+    samples = sample_times(times)
     step = None if options is None else options.time_step
     return int(_step_counts(samples, step, np.ndim(times) == 0).sum())
 
@@ -274,12 +276,18 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None,
     chunk, default 500), and the monitor is called for every branch with a
     fifth argument ``split`` (True once the set has been split: the sets are
     then pieces of a union, and a measurement outside one piece is no
-    violation by itself).  ``branches`` is empty.
+    violation by itself).  ``branches`` is empty.  With ``algorithm="adaptive"``
+    the chunks are of ``chunk_steps`` sample intervals (default
+    :data:`~reachconf.reach_adaptive_stream.CHUNK_SAMPLES`), the state set is
+    carried across them as a union of pieces, and ``stream(k0, k1, run)``
+    receives, per piece, the adaptive run over the samples ``k0 .. k1``
+    (:func:`reachconf.reach_adaptive_stream.run_adaptive_streamed`).
 
     Returns
     -------
-    ReachRun or AdaptiveRun
-        (:class:`reachconf.reach_adaptive.AdaptiveRun` with ``algorithm="adaptive"``)
+    ReachRun, AdaptiveRun or StreamedAdaptiveRun
+        (:class:`reachconf.reach_adaptive.AdaptiveRun` with ``algorithm="adaptive"``,
+        :class:`reachconf.reach_adaptive_stream.StreamedAdaptiveRun` if also streamed)
 
     Raises
     ------
@@ -297,11 +305,9 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None,
         W = Zonotope(np.zeros(q), np.zeros((q, 0)))
     Wz = as_zonotope(W, q, "W")
     scalar = np.ndim(times) == 0
-    samples = _sample_times(times)
+    samples = sample_times(times)
     if isinstance(options.alg, AdaptiveReach):
-        if stream is not None:
-            raise OptionsError("a streamed reach needs a fixed step: algorithm='lin' or 'poly', not 'adaptive'")
-        return _adaptive(model, Z0, Wz, samples, scalar, inputs, options, monitor)
+        return _adaptive(model, Z0, Wz, samples, scalar, inputs, options, monitor, stream, chunk_steps)
     dts, t_start, sample_of_step, step_offsets = _step_grid(samples, options.time_step, scalar)
     U = _input_table(model, inputs, samples, t_start, sample_of_step, per_step=scalar)
     if scalar:  # every step end is a sample time
@@ -447,17 +453,31 @@ def _reach_streamed(model, options, Z0, Wz, samples, step_offsets, t_start, dts,
                      monitor is not None)  # fmt: skip
 
 
-def _adaptive(model, Z0, Wz, samples, scalar, inputs, options, monitor):
-    """``algorithm="adaptive"``: inputs per sample interval, then :func:`reachconf.reach_adaptive.run_adaptive`."""
+def _adaptive(model, Z0, Wz, samples, scalar, inputs, options, monitor, stream=None, chunk=None):
+    """``algorithm="adaptive"``: inputs per sample interval, then :func:`reachconf.reach_adaptive.run_adaptive`.
+
+    Streamed (``stream`` given): :func:`reachconf.reach_adaptive_stream.run_adaptive_streamed`, chunks of
+    ``chunk`` sample intervals, on :func:`~reachconf.reach_adaptive_stream.streamed_grid` for a final time.
+    """
     horizon = float(samples[-1] - samples[0])
-    if scalar and model.m and callable(inputs):  # a callable input is sampled on the default grid
+    U = None
+    if scalar and stream is not None:  # a grid to stream on; inputs given as rows act on all of it
+        if not callable(inputs):
+            U = _input_table(model, inputs, samples, samples[:-1], np.arange(samples.size - 1), per_step=False)
+        samples = streamed_grid(samples, scalar, options.time_step)
+        U = None if U is None else np.repeat(U[:1], samples.size - 1, axis=0)
+    elif scalar and model.m and callable(inputs):  # a callable input is sampled on the default grid
         grid = options.time_step if options.time_step is not None else horizon / 100.0
         samples = np.linspace(samples[0], samples[-1], max(1, int(np.ceil(horizon / grid - 1e-9))) + 1)
     samples = np.ascontiguousarray(samples, dtype=float)
     K = samples.size
-    U = _input_table(model, inputs, samples, samples[:-1], np.arange(K - 1), per_step=False)
+    if U is None:
+        U = _input_table(model, inputs, samples, samples[:-1], np.arange(K - 1), per_step=False)
     bar = progress_bar(options.progress, K - 1, f"reach {model.name}", "sample", 2000, terminal_only=True)
     try:
+        if stream is not None:
+            return run_adaptive_streamed(model, Z0, Wz, samples, U, options, horizon, stream=stream, monitor=monitor,
+                                         chunk=chunk, progress=bar, stopped=ReachStopped)  # fmt: skip
         return run_adaptive(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=monitor, progress=bar,
                             stopped=ReachStopped)  # fmt: skip
     finally:

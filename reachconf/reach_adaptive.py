@@ -269,7 +269,8 @@ def run_adaptive(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=No
                 raise
             options = dataclasses.replace(options, algorithm=dataclasses.replace(
                 options.alg, error_budget=0.5 * options.alg.error_budget),
-                max_splits=max(1, int(RETRY_SPLITS * options.effective_max_splits)))  # fmt: skip
+                max_splits=max(min(1, options.effective_max_splits),
+                            int(RETRY_SPLITS * options.effective_max_splits)))  # fmt: skip
             if progress is not None and hasattr(progress, "reset"):
                 progress.reset()
             continue

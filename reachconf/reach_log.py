@@ -145,6 +145,29 @@ class ReachLog:
         return cls(**kw, budget=budget, smallest_step=smallest, budgets_tried=tried)
 
     @classmethod
+    def concat(cls, logs) -> "ReachLog":
+        """One log of several runs (the chunks of a streamed adaptive reach, in time order).
+
+        Branch numbers are made unique by offsetting each run's by the
+        branches before it; ``budgets_tried`` is that of the run that tried
+        the most budgets (a run is retried from its start with half the budget).
+        """
+        logs = list(logs)
+        if len(logs) == 1:
+            return logs[0]
+        offsets = np.cumsum([0] + [_branch_count(lg) for lg in logs[:-1]])
+        cat = {k: np.concatenate([np.asarray(getattr(lg, k)) for lg in logs]) for k in _STEP_FIELDS[1:]}
+        cat["branch"] = np.concatenate([lg.branch + o for lg, o in zip(logs, offsets)]).astype(np.int64)
+        for k in ("split_time", "split_start"):
+            cat[k] = np.concatenate([np.asarray(getattr(lg, k), dtype=float) for lg in logs])
+        cat["split_parent"] = np.concatenate([lg.split_parent + o for lg, o in zip(logs, offsets)]).astype(np.int64)
+        cat["split_children"] = np.concatenate([lg.split_children.reshape(-1, 2) + o
+                                                for lg, o in zip(logs, offsets)]).astype(np.int64)  # fmt: skip
+        tried = max((np.asarray(lg.budgets_tried, dtype=float) for lg in logs), key=np.size)
+        return cls(**cat, budget=logs[0].budget, smallest_step=float(min(lg.smallest_step for lg in logs)),
+                   budgets_tried=tried)  # fmt: skip
+
+    @classmethod
     def from_records(cls, rec, branches, split_log, budget, smallest, n) -> "ReachLog":
         """The log of an adaptive run from the kernel's per-step records.
 
@@ -180,3 +203,11 @@ class ReachLog:
             budget=float(budget),
             smallest_step=float(smallest),
         )
+
+
+def _branch_count(log) -> int:
+    """Branches a run numbered (0 .. the largest index in its steps or splits)."""
+    top = [int(log.branch.max()) if log.branch.size else 0]
+    if np.size(log.split_children):
+        top.append(int(np.max(log.split_children)))
+    return max(top) + 1

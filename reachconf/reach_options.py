@@ -217,15 +217,19 @@ class ReachOptions:
 
     Parameters
     ----------
-    algorithm : str or ReachAlgorithm, default "lin"
-        :class:`ConservativeLinearization` (``"lin"``, Althoff 2008),
-        :class:`ConservativePolynomialization` (``"poly"``, Althoff 2013) or
-        :class:`AdaptiveReach` (``"adaptive"``, Wetzlinger et al. 2021: no
-        fixed step, orders or tensor order); ``alg`` is it as an instance.
+    algorithm : str or ReachAlgorithm, default "adaptive"
+        :class:`AdaptiveReach` (``"adaptive"``, after Wetzlinger et al. 2021:
+        step, orders and tensor order chosen per step, splits when that is
+        cheaper; the default), or the fixed-parameter algorithms
+        :class:`ConservativeLinearization` (``"lin"``, Althoff 2008) and
+        :class:`ConservativePolynomialization` (``"poly"``, Althoff 2013),
+        which use ``time_step``, ``zonotope_order`` and ``tensor_order`` as
+        given; ``alg`` is it as an instance.
     time_step : float or None, default None
-        "lin"/"poly": the integration step; ``None``: one hundredth of the
-        horizon, capped by the spacing of the sample times.  "adaptive": the
-        largest step (``None``: a tenth of the horizon).
+        "adaptive": the largest step (``None``: a tenth of the horizon; steps
+        also end at every sample time).  "lin"/"poly": the integration step;
+        ``None``: one hundredth of the horizon, capped by the spacing of the
+        sample times.
     taylor_terms : int, default 4
         Taylor terms of the matrix exponential (``r``); the remainder is bounded.
     zonotope_order : float, default 20
@@ -240,7 +244,8 @@ class ReachOptions:
         most 1000.
     tensor_order : int or None, default None
         2 (interval Hessian) or 3 (Hessian at the point + interval third-order
-        tensor).  ``None``: 2 for "lin", 3 for "poly".
+        tensor).  ``None``: chosen per step by "adaptive", 2 for "lin", 3 for
+        "poly".
     reduction : str or ReductionMethod, default "girard"
         Order-reduction method: :class:`~reachconf.sets.reduction.Girard`
         (``"girard"``, Girard 2005) or :class:`~reachconf.sets.reduction.PCA`
@@ -270,7 +275,7 @@ class ReachOptions:
         See :mod:`reachconf.model.codegen`.
     """
 
-    algorithm: str | ReachAlgorithm = "lin"
+    algorithm: str | ReachAlgorithm = "adaptive"
     time_step: float | None = None
     taylor_terms: int = 4
     zonotope_order: float = 20.0

@@ -23,7 +23,9 @@ import math
 import numpy as np
 
 from reachconf.budget import TimeBudget
-from reachconf.reach import integration_steps, reach_run
+from reachconf.reach import sample_times, integration_steps, reach_run
+from reachconf.reach_adaptive_stream import streamed_grid
+from reachconf.reach_options import AdaptiveReach, ReachOptions
 from reachconf.sets.core import Zonotope
 from reachconf.sets.union import SetUnion
 from reachconf.tube import ReachTube
@@ -57,7 +59,15 @@ def reach_streamed(model, X0, times, inputs=None, W=None, options=None, max_sets
     -------
     ReachTube
         With every step's interval hull and every ``tube.keep_every``-th set.
+        With ``algorithm="adaptive"`` (:mod:`reachconf.reach_adaptive_stream`)
+        the "steps" of the bounds and of ``keep_every`` are the sample
+        intervals (a final time is cut into a hundred, or into ``time_step``
+        pieces); a kept time-interval set is the union of the sets of all
+        adaptive steps in its sample interval, and ``tube.log`` holds the
+        choices of every chunk.
     """
+    if isinstance((options or ReachOptions()).alg, AdaptiveReach):
+        return _streamed_adaptive(model, X0, times, inputs, W, options, max_sets, monitor, time_limit)
     S = integration_steps(times, options)
     keep_every = max(1, math.ceil(S / max(1, int(max_sets))))
     n = model.n
@@ -93,6 +103,54 @@ def reach_streamed(model, X0, times, inputs=None, W=None, options=None, max_sets
     return ReachTube(run.samples[kept_samples], tp_sets, intervals, [one(ti_kept[int(k)]) for k in steps],
                      model.state_names, model=model, splits=run.splits, seconds=run.seconds, meta=meta,
                      keep_every=keep_every, step_bounds=bounds, all_times=run.samples)  # fmt: skip
+
+
+def _streamed_adaptive(model, X0, times, inputs, W, options, max_sets, monitor, time_limit):
+    """:func:`reach_streamed` with ``algorithm="adaptive"``: bounds and kept sets per sample interval."""
+    from reachconf_kernels.adaptive import REC_T0, piece_hulls
+
+    samples = streamed_grid(sample_times(times), np.ndim(times) == 0, options.time_step)
+    S = samples.size - 1
+    keep_every = max(1, math.ceil(S / max(1, int(max_sets))))
+    n = model.n
+    bounds = np.empty((S, 2, n))
+    bounds[:, 0] = np.inf
+    bounds[:, 1] = -np.inf
+    ti_kept, tp_kept = {}, {}
+    budget = TimeBudget(f"reach of model {model.name!r}", time_limit, min_fraction=0.02)
+
+    def collect(k0, k1, run):
+        lo, hi = piece_hulls(run.ti_c, np.ascontiguousarray(run.ti_G), run.ng_ti)
+        # every step lies within one sample interval (steps end at every sample time)
+        j = k0 + np.clip(np.searchsorted(run.samples, run.rec[:, REC_T0], side="right") - 1, 0, k1 - k0 - 1)
+        np.minimum.at(bounds[:, 0], j, lo)
+        np.maximum.at(bounds[:, 1], j, hi)
+        off_ti = np.concatenate([[0], np.cumsum(run.ng_ti)])
+        for p in np.nonzero(j % keep_every == 0)[0]:
+            ti_kept.setdefault(int(j[p]), []).append(_set(run.ti_c[p], run.ti_G[:, off_ti[p] :], run.ng_ti[p]))
+        off_tp = np.concatenate([[0], np.cumsum(run.ng_tp)])
+        for br in run.branches:
+            if br.rec_hi <= br.rec_lo:
+                continue
+            for js in np.nonzero(br.sample_step >= 0)[0]:
+                k = k0 + int(js)
+                if js >= 1 and k % keep_every == 0:
+                    r = int(br.sample_step[js])
+                    tp_kept.setdefault(k, []).append(_set(run.tp_c[r], run.tp_G[:, off_tp[r] :], run.ng_tp[r]))
+        budget.check(k1, S)
+
+    run = reach_run(model, X0, times, inputs, W, options, monitor=monitor, stream=collect)  # on the same grid
+    one = lambda pieces: pieces[0] if len(pieces) == 1 else SetUnion(pieces)  # noqa: E731
+    steps = np.array(sorted(ti_kept), dtype=np.int64)
+    kept_samples = [0] + sorted(tp_kept)
+    tp_sets = [run.X0] + [one(tp_kept[k]) for k in kept_samples[1:]]
+    intervals = np.column_stack([samples[steps], samples[steps + 1]]) if steps.size else np.zeros((0, 2))
+    options_json = json.loads(json.dumps(run.options.__dict__, default=str))
+    meta = {"model": model.name, "options": options_json, "streamed": True, "steps": int(run.log.steps),
+            "chunks": run.chunks}  # fmt: skip
+    return ReachTube(samples[kept_samples], tp_sets, intervals, [one(ti_kept[int(k)]) for k in steps],
+                     model.state_names, model=model, splits=run.splits, seconds=run.seconds, meta=meta,
+                     keep_every=keep_every, step_bounds=bounds, all_times=samples, log=run.log)  # fmt: skip
 
 
 def _set(c, G, ng):

@@ -54,6 +54,17 @@ class PieceSets(Sequence):
             self._cache[j] = out
         return out
 
+    def distinct_pieces(self) -> list:
+        """Every stored piece once (a piece of a branch's long step serves several entries): for drawing."""
+        out = []
+        for i in np.unique(self._indices):
+            out.extend(self._make(np.array([i], dtype=np.int64)).pieces)
+        return out
+
+    def __reduce__(self):
+        # pickled (to or from a worker process) as the plain list of its sets: ``make`` is a closure
+        return (list, (list(self),))
+
     def groups(self):
         """``(indptr, indices)``: the pieces of every entry."""
         return self._indptr, self._indices

@@ -17,7 +17,7 @@ from reachconf.plot import plot_measured
 from reachconf.model.core import require_model
 from reachconf.model.outputs import affine_output, output_enclosure, output_index_of_states, state_estimate
 from reachconf.reach import ReachStopped, integration_steps, reach_run
-from reachconf.reach_options import ReachOptions
+from reachconf.reach_options import AdaptiveReach, ReachOptions
 from reachconf.reach_stream import streamed_bytes_per_step
 from reachconf.sets.containment import contains_points_lp
 from reachconf.sets.convert import as_box
@@ -210,7 +210,8 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
     X0 : Interval or Zonotope, optional
         Initial set; default eq. 67, ``X(t_1) ⊕ V`` (:func:`initial_set`).
     options : ReachOptions, optional
-        Default: time step = sample spacing.
+        Default ``ReachOptions()`` (``"adaptive"``: its steps end at every
+        sample time).
     keep_tube : bool
         Keep the reach tube in the result.  False streams the reach: the sets
         are checked chunk by chunk as they are computed and dropped, with the
@@ -268,8 +269,10 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
             if checker.check_first(X0):
                 raise ReachStopped(0)
             budget = TimeBudget(f"reachset conformance of case {name!r}", time_limit, min_fraction=0.02)
+            # progress in steps ("lin"/"poly") or in sample intervals ("adaptive": k0, k1 are samples)
+            total = t.size - 1 if isinstance(options.alg, AdaptiveReach) else steps
             reach_run(model, X0, t - t[0], inputs=inputs, W=W, options=options, monitor=checker,
-                      stream=lambda k0, k1, store, base: budget.check(k1, steps))  # fmt: skip
+                      stream=lambda k0, k1, *_: budget.check(k1, total))  # fmt: skip
         except ReachError as exc:
             return ReachsetResult(name, False, float(t[0] + (exc.time or 0.0)), float("inf"), checker.inside,
                                   None, time.perf_counter() - t0, str(exc), {}, t, Y, model.output_names,

@@ -43,6 +43,8 @@ def model_builds(reach_options=()) -> list:
         remainder = getattr(ro, "remainder", "taylor")
         order = 3 if ro.effective_tensor_order == 3 and remainder != "taylor" else 2
         builds.add((order, remainder))
+        if remainder != "taylor" and ro.tensor_order is None and ro.alg.name == "adaptive":
+            builds.add((3, remainder))  # "adaptive" asks for tensor order 3 where order 2 does not fit
     return sorted(builds, key=lambda b: (b[0], str(b[1])))
 
 

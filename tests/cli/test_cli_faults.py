@@ -124,12 +124,12 @@ def test_failed_reach_is_undecided_with_exit_3_and_strict_json(capsys, run_file,
     status, out, err = main(capsys, "conform", run_file, "--case", "lane_change_01", "--kind", "reachset",
                             "--json", tmp_path / "c.json", "--out", tmp_path / "o")  # fmt: skip
     assert status == cli.EXIT_UNDECIDED == 3, err
-    assert "lane_change_01: reachset: undecided (reachability of model" in out
+    assert "lane_change_01: reachset: undecided (adaptive reachability of model" in out  # the default algorithm
     for path in (tmp_path / "c.json", tmp_path / "o" / "conformance.json"):
         res = json.loads(path.read_text(), parse_constant=lambda c: pytest.fail(f"{c} is not JSON"))
         entry = res["lane_change_01"]["reachset"]
         assert entry["verdict"] == "undecided" and entry["conformant"] is None and entry["max_violation"] is None
-        assert "failed at t = 0 s" in entry["message"]
+        assert "could not bound the abstraction error at t = 0.000" in entry["message"]
 
 
 def test_undecided_reaches_make_synthesis_undecided(monkeypatch):

@@ -215,7 +215,8 @@ def test_reach_fallback_only_when_the_reach_itself_fails():
     V = rc.Interval([-0.01], [0.01])
     case = TestCase("c", "g", t, np.zeros((t.size, 0)), x[:, None], (), ("x",))
     W = rc.Interval([-0.01], [0.01])
-    coarse = rc.ReachOptions(time_step=0.1, max_splits=0, zonotope_order=1, tensor_order=2, max_error=1e-4)
+    coarse = rc.ReachOptions(algorithm="lin", time_step=0.1, max_splits=0, zonotope_order=1, tensor_order=2,
+                             max_error=1e-4)  # fmt: skip
     fine = rc.ReachOptions(time_step=0.01, tensor_order=3)
     alone = syn.reachset_check(m, case, W, V, SynthesisOptions(reach=coarse))
     assert not alone.conformant and alone.message  # the coarse reach fails

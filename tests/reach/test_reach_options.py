@@ -10,6 +10,7 @@ import reachconf as rc
 from reachconf.models import vanderpol
 from reachconf.reach_options import (
     ALGORITHM_TYPES,
+    AdaptiveReach,
     ConservativeLinearization,
     ConservativePolynomialization,
     ReachAlgorithm,
@@ -20,7 +21,8 @@ from reachconf.sets import PCA, Girard
 
 
 def test_strings_are_shorthands_for_the_types():
-    assert isinstance(rc.ReachOptions().alg, ConservativeLinearization)
+    assert isinstance(rc.ReachOptions().alg, AdaptiveReach)  # the default (issue 16)
+    assert isinstance(rc.ReachOptions(algorithm="lin").alg, ConservativeLinearization)
     assert isinstance(rc.ReachOptions(algorithm="poly").alg, ConservativePolynomialization)
     assert rc.ReachOptions(algorithm="poly").effective_tensor_order == 3
     assert rc.ReachOptions(algorithm=ConservativePolynomialization()).effective_tensor_order == 3
@@ -66,3 +68,13 @@ def test_adding_an_algorithm_is_local():
         ALGORITHM_TYPES.pop("test_even", None)
     with pytest.raises(rc.OptionsError):
         rc.ReachOptions(algorithm="test_even")
+
+
+def test_model_builds_of_the_default_and_of_fixed_orders():
+    """The builds a run's workers get: "adaptive" with tensor remainders may ask for order 3 at any step."""
+    from reachconf.model.shipping import model_builds
+
+    assert model_builds([rc.ReachOptions()]) == [(2, "taylor")]  # a Taylor-mode build serves both orders
+    assert model_builds([rc.ReachOptions(remainder="tensor")]) == [(2, "taylor"), (2, "tensor"), (3, "tensor")]
+    assert model_builds([rc.ReachOptions(algorithm="lin", remainder="tensor")]) == [(2, "taylor"), (2, "tensor")]
+    assert model_builds([rc.ReachOptions(remainder="tensor", tensor_order=2)]) == [(2, "taylor"), (2, "tensor")]

@@ -9,7 +9,8 @@ from reachconf.demo import V_TRUE, W_TRUE, make_long_case
 from reachconf.models import get_model
 from reachconf.reach_stream import reach_streamed
 
-OPTS = rc.ReachOptions(time_step=0.02)
+#: the fixed-step streamed layout (steps of 0.02 s); the adaptive one is in test_reach_adaptive_stream.py
+OPTS = rc.ReachOptions(algorithm="lin", time_step=0.02)
 
 
 @pytest.fixture(scope="module")
@@ -40,14 +41,23 @@ def test_streamed_reach_keeps_every_bound_and_some_sets(setting):
         st.at(case.t[3] + 0.001)
 
 
-def test_streamed_reachset_check_equals_the_kept_tube(setting):
-    """Same verdict per sample with and without keeping the tube (eq. 43), also for a non-conformant W."""
+@pytest.mark.parametrize("algorithm", ["lin", "adaptive"])
+def test_streamed_reachset_check_equals_the_kept_tube(setting, algorithm, monkeypatch):
+    """Same verdict per sample with and without keeping the tube (eq. 43), also for a non-conformant W.
+
+    "adaptive" streams in chunks of 300 samples (five), restarting its step control at each boundary: measured,
+    the same verdicts and max violations 2e-11 apart (relative).
+    """
+    import reachconf.reach_adaptive_stream as ras
+
+    monkeypatch.setattr(ras, "CHUNK_SAMPLES", 300)
     model, case, X0 = setting
+    opts = OPTS if algorithm == "lin" else rc.ReachOptions(algorithm="adaptive")
     for W in (W_TRUE, rc.Interval(W_TRUE.lo * 0.2, W_TRUE.hi * 0.2)):
-        kept = reachset_conformance(model, case, W, V_TRUE, options=OPTS, keep_tube=True)
-        streamed = reachset_conformance(model, case, W, V_TRUE, options=OPTS, keep_tube=False)
+        kept = reachset_conformance(model, case, W, V_TRUE, options=opts, keep_tube=True)
+        streamed = reachset_conformance(model, case, W, V_TRUE, options=opts, keep_tube=False)
         assert np.array_equal(kept.inside, streamed.inside)
-        assert kept.conformant == streamed.conformant
+        assert kept.conformant == streamed.conformant == (W is W_TRUE)
         assert kept.first_violation_time == streamed.first_violation_time
         if not kept.conformant:
             assert np.isclose(kept.max_violation, streamed.max_violation, rtol=1e-6)
@@ -62,7 +72,7 @@ def test_streamed_check_of_a_split_reach_is_a_union():
     Y = rc.simulate(m, [1.4, 2.4], t)
     X0 = rc.Interval([1.25, 2.35], [1.55, 2.45])
     V = rc.Interval([-0.01, -0.01], [0.01, 0.01])
-    opts = rc.ReachOptions(tensor_order=3, time_step=0.01, max_error=0.03, max_splits=64)
+    opts = rc.ReachOptions(algorithm="lin", tensor_order=3, time_step=0.01, max_error=0.03, max_splits=64)
     for shift in (0.0, 0.4):  # inside; partly outside (from some time on)
         case = rc.TestCase("vdp", "g", t, np.zeros((t.size, 0)), Y + shift * (t > 1.5)[:, None], (), m.output_names)
         kept = reachset_conformance(m, case, None, V, X0=X0, options=opts, keep_tube=True)
