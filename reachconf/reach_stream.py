@@ -69,13 +69,7 @@ def reach_streamed(model, X0, times, inputs=None, W=None, options=None, max_sets
     if isinstance((options or ReachOptions()).alg, AdaptiveReach):
         return _streamed_adaptive(model, X0, times, inputs, W, options, max_sets, monitor, time_limit)
     S = integration_steps(times, options)
-    keep_every = max(1, math.ceil(S / max(1, int(max_sets))))
-    n = model.n
-    bounds = np.empty((S, 2, n))
-    bounds[:, 0] = np.inf
-    bounds[:, 1] = -np.inf
-    ti_kept, tp_kept = {}, {}
-    budget = TimeBudget(f"reach of model {model.name!r}", time_limit, min_fraction=0.02)
+    keep_every, bounds, ti_kept, tp_kept, budget = _accumulators(model, S, max_sets, time_limit)
 
     def collect(k0, k1, store, base):
         sl = slice(k0 - base, k1 - base)
@@ -91,16 +85,15 @@ def reach_streamed(model, X0, times, inputs=None, W=None, options=None, max_sets
         budget.check(k1, S)
 
     run = reach_run(model, X0, times, inputs, W, options, monitor=monitor, stream=collect)
-    one = lambda pieces: pieces[0] if len(pieces) == 1 else SetUnion(pieces)  # noqa: E731
     steps = np.array(sorted(ti_kept), dtype=np.int64)
     # the kept time-point sets are those at sample times whose step was kept
     sample_step = np.asarray(run.step_offsets, dtype=np.int64) - 1
     kept_samples = [0] + [j for j in range(1, run.samples.size) if int(sample_step[j]) in tp_kept]
-    tp_sets = [run.X0] + [one(tp_kept[int(sample_step[j])]) for j in kept_samples[1:]]
+    tp_sets = [run.X0] + [_one(tp_kept[int(sample_step[j])]) for j in kept_samples[1:]]
     intervals = np.column_stack([run.t_start[steps], run.t_start[steps] + run.dts[steps]]) if steps.size else np.zeros((0, 2))
     options_json = json.loads(json.dumps(run.options.__dict__, default=str))  # inf -> "inf", tuples -> lists
     meta = {"model": model.name, "options": options_json, "streamed": True, "steps": int(S)}
-    return ReachTube(run.samples[kept_samples], tp_sets, intervals, [one(ti_kept[int(k)]) for k in steps],
+    return ReachTube(run.samples[kept_samples], tp_sets, intervals, [_one(ti_kept[int(k)]) for k in steps],
                      model.state_names, model=model, splits=run.splits, seconds=run.seconds, meta=meta,
                      keep_every=keep_every, step_bounds=bounds, all_times=run.samples)  # fmt: skip
 
@@ -111,13 +104,7 @@ def _streamed_adaptive(model, X0, times, inputs, W, options, max_sets, monitor, 
 
     samples = streamed_grid(sample_times(times), np.ndim(times) == 0, options.time_step)
     S = samples.size - 1
-    keep_every = max(1, math.ceil(S / max(1, int(max_sets))))
-    n = model.n
-    bounds = np.empty((S, 2, n))
-    bounds[:, 0] = np.inf
-    bounds[:, 1] = -np.inf
-    ti_kept, tp_kept = {}, {}
-    budget = TimeBudget(f"reach of model {model.name!r}", time_limit, min_fraction=0.02)
+    keep_every, bounds, ti_kept, tp_kept, budget = _accumulators(model, S, max_sets, time_limit)
 
     def collect(k0, k1, run):
         lo, hi = piece_hulls(run.ti_c, np.ascontiguousarray(run.ti_G), run.ng_ti)
@@ -140,17 +127,31 @@ def _streamed_adaptive(model, X0, times, inputs, W, options, max_sets, monitor, 
         budget.check(k1, S)
 
     run = reach_run(model, X0, times, inputs, W, options, monitor=monitor, stream=collect)  # on the same grid
-    one = lambda pieces: pieces[0] if len(pieces) == 1 else SetUnion(pieces)  # noqa: E731
     steps = np.array(sorted(ti_kept), dtype=np.int64)
     kept_samples = [0] + sorted(tp_kept)
-    tp_sets = [run.X0] + [one(tp_kept[k]) for k in kept_samples[1:]]
+    tp_sets = [run.X0] + [_one(tp_kept[k]) for k in kept_samples[1:]]
     intervals = np.column_stack([samples[steps], samples[steps + 1]]) if steps.size else np.zeros((0, 2))
     options_json = json.loads(json.dumps(run.options.__dict__, default=str))
     meta = {"model": model.name, "options": options_json, "streamed": True, "steps": int(run.log.steps),
             "chunks": run.chunks}  # fmt: skip
-    return ReachTube(samples[kept_samples], tp_sets, intervals, [one(ti_kept[int(k)]) for k in steps],
+    return ReachTube(samples[kept_samples], tp_sets, intervals, [_one(ti_kept[int(k)]) for k in steps],
                      model.state_names, model=model, splits=run.splits, seconds=run.seconds, meta=meta,
                      keep_every=keep_every, step_bounds=bounds, all_times=samples, log=run.log)  # fmt: skip
+
+
+def _accumulators(model, S: int, max_sets: int, time_limit):
+    """What a streamed reach collects over ``S`` steps: ``keep_every``, the empty ``(S, 2, n)`` bounds, the kept
+    time-interval and time-point sets (step -> pieces) and the time budget."""
+    keep_every = max(1, math.ceil(S / max(1, int(max_sets))))
+    bounds = np.empty((S, 2, model.n))
+    bounds[:, 0] = np.inf
+    bounds[:, 1] = -np.inf
+    budget = TimeBudget(f"reach of model {model.name!r}", time_limit, min_fraction=0.02)
+    return keep_every, bounds, {}, {}, budget
+
+
+def _one(pieces):
+    return pieces[0] if len(pieces) == 1 else SetUnion(pieces)
 
 
 def _set(c, G, ng):

@@ -141,7 +141,8 @@ def _start(fits, base_params=None):
 def _which(model, prepared, candidates, folds, clusters, sigma, fit_names, options, cache, bar, state):
     """Base, screening, cross-fitted singles and pairs, into ``state`` (kept when interrupted):
     ``base_full``, ``base`` (scored), ``models`` (scored singles and pairs), ``screen`` (screening fits),
-    ``scale`` (the loss scale per channel: ``sigma`` or, with ``loss_scale="residual"``, the base's misfit)."""
+    ``scale`` (the loss scale per channel: ``sigma`` or, with ``loss_scale="residual"``, the base's misfit).
+    With ``loss_scale="case"`` the cases of ``prepared`` are replaced in place by copies carrying their weights."""
     base_full = fit_candidate(model, Candidate(()), prepared, sigma, fit_names, options, cache)
     if options.loss_scale == "residual":
         sigma = residual_scale(base_full, prepared, sigma, options)
