@@ -22,6 +22,7 @@ from reachconf.diagnose.effects import EFFECTS
 from reachconf.diagnose.fit import Candidate
 from reachconf.diagnose.options import INTERVAL_METHODS, DiagnoseOptions
 from reachconf.diagnose.select import Scored, decide
+from reachconf.diagnose.scales import reweigh_factors
 from reachconf.io import atomic_write, load_suite, save_suite
 
 __all__ = ["stem", "load_or_make", "diagnose_job", "stored_row", "interleaved", "suite_job", "TUNING_RUN_THRESHOLDS", "redecide", "choose_thresholds", "coverage", "summary_tables",
@@ -125,6 +126,8 @@ def diagnose_job(job) -> dict:
     sc = report.scores
     arrays = {"clusters": sc["clusters"], "base": sc["base"]}
     arrays.update({f"model{i}": m["losses"] for i, m in enumerate(sc["models"])})
+    if sc.get("layout") is not None:  # the case layout of the pair tests' re-weighing (loss_scale="case")
+        arrays.update({f"layout_{k}": v for k, v in sc["layout"].items()})
     import io
 
     buf = io.BytesIO()
@@ -157,7 +160,10 @@ def redecide(row, cache, **thresholds) -> dict:
               for i, m in enumerate(row["models"])]  # fmt: skip
     measured = row["decision"].get("consistency", {})
     opts = DiagnoseOptions(**thresholds)
-    d = decide(base, models, data["clusters"], opts, spread=lambda m: measured.get(m.label, {}).get("spread"))
+    layout = {k: data[f"layout_{k}"] for k in ("case", "weights", "elements")} if "layout_case" in data else None
+    reweigh = (lambda m: reweigh_factors(m.losses, layout)) if layout is not None else None
+    d = decide(base, models, data["clusters"], opts, spread=lambda m: measured.get(m.label, {}).get("spread"),
+               reweigh=reweigh)  # fmt: skip
     chosen = d["chosen"]
     return {"status": d["status"], "named_parts": [list(k) for k in chosen.candidate.keys] if chosen else [],
             "alternatives": [{"parts": [list(k) for k in m.candidate.keys]} for m, _ in d["alternatives"]]}

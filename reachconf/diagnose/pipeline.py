@@ -61,7 +61,7 @@ from reachconf.diagnose.locate import locate_gap
 from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.diagnose.probes import band_shares, separating_probe
 from reachconf.diagnose.report import GapReport
-from reachconf.diagnose.scales import case_weights, residual_scale
+from reachconf.diagnose.scales import case_layout, case_weights, residual_scale, reweigh_factors
 from reachconf.diagnose.select import (
     cross_fit,
     decide,
@@ -320,7 +320,12 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
             spreads[m.label] = {"spread": model_spread(m.candidate, sizes), "sizes": sizes}
         return spreads[m.label]["spread"]
 
-    decision = decide(base_sc, models, clusters, options, mimic=mimic, spread=spread)
+    layout = case_layout(prepared, len(np.atleast_1d(scale))) if options.loss_scale == "case" else None
+
+    def reweigh(single):  # a pair against its part: the case weights from that part's misfit (select.decide)
+        return reweigh_factors(single.losses, layout) if layout is not None else None
+
+    decision = decide(base_sc, models, clusters, options, mimic=mimic, spread=spread, reweigh=reweigh)
     decision["consistency"] = {label: {"spread": v["spread"], "sizes": {f"{e}({t})": x for (e, t), x in v["sizes"].items()}}
                                for label, v in spreads.items()}  # fmt: skip
     for label, res in mimics.items():
@@ -438,5 +443,5 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     report.tubes = tubes
     report.scores = {"clusters": clusters, "base": base_sc.losses,
                      "models": [{"label": m.label, "parts": [[e.name, t] for e, t in m.candidate.parts],
-                                 "losses": m.losses} for m in models]}  # fmt: skip
+                                 "losses": m.losses} for m in models], "layout": layout}  # fmt: skip
     return report

@@ -14,7 +14,7 @@ import numpy as np
 from reachconf.diagnose.fit import FitResult, window_residuals
 from reachconf.diagnose.options import DiagnoseOptions
 
-__all__ = ["case_weights", "residual_scale"]
+__all__ = ["case_layout", "case_weights", "residual_scale", "reweigh_factors"]
 
 
 def case_weights(fit: FitResult, data, sigma, options: DiagnoseOptions) -> np.ndarray:
@@ -78,3 +78,45 @@ def residual_scale(fit: FitResult, data, sigma, options: DiagnoseOptions) -> np.
     r = window_residuals(fit.model, fit.candidate, fit.effect_params, data, sigma, options.substeps)
     rms = np.sqrt(np.mean(r.reshape(-1, sigma.size) ** 2, axis=0)) * sigma
     return np.maximum(np.where(np.isfinite(rms), rms, sigma), sigma)
+
+
+def case_layout(data, p: int) -> dict:
+    """Where each prediction window belongs, for :func:`reweigh_factors`: ``case`` (the case of every window),
+    ``weights`` (each case's weight) and ``elements`` (residual elements per window of each case)."""
+    counts = np.array([d.starts.size for d in data], dtype=np.int64)
+    return {"case": np.repeat(np.arange(len(data)), counts), "weights": np.array([d.weight for d in data], float),
+            "elements": np.array([d.per_window * p for d in data], dtype=float)}  # fmt: skip
+
+
+def reweigh_factors(losses, layout: dict) -> np.ndarray:
+    """Per-window factors that re-weigh held-out losses by a model's own misfit (``loss_scale = "case"``).
+
+    The case weights of :func:`case_weights` come from the base model's
+    misfit.  When a two-effect model is tested against one of its one-effect
+    parts, the error variance of each run is that part's misfit: the same
+    second step of a feasible weighted least squares, one model further
+    (iterated).  A run that the first effect follows to the noise level
+    counts with weight 1 again, a run it still cannot follow counts less.
+
+    Parameters
+    ----------
+    losses : ndarray
+        Held-out window losses of the one-effect model (weighted by the case weights), cases in order.
+    layout : dict
+        :func:`case_layout` of the cases.
+
+    Returns
+    -------
+    ndarray, shape like ``losses``
+        ``(w'_c / w_c) ** 2`` for every window of case ``c``, with ``w'_c = 1 / max(1, s_c)`` and ``s_c`` the
+        root-mean-square normalised residual of the model on case ``c`` (its weight removed).
+    """
+    case, w, elements = layout["case"], layout["weights"], layout["elements"]
+    n = w.size
+    counts = np.bincount(case, minlength=n)
+    sums = np.bincount(case, weights=np.asarray(losses, dtype=float), minlength=n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ms = sums / (w**2 * np.maximum(counts, 1) * elements)
+    ms = np.where(np.isfinite(ms), ms, np.inf)
+    w_new = 1.0 / np.maximum(np.sqrt(ms), 1.0)
+    return ((w_new / w) ** 2)[case]

@@ -141,11 +141,12 @@ def cross_fit(base_model, cand: Candidate, data, folds, sigma, fit_names, option
     return Scored(cand, losses, fits)
 
 
-def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, spread=None) -> tuple:
+def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, spread=None, reweigh=None) -> tuple:
     """(admissible, tests): a one-effect model against the base, a two-effect model against each of its parts.
 
     ``spread(m)``: the relative spread of ``m``'s effects across groups (or None), asked only when a
-    significant gain is below ``min_improvement`` but at least ``consistent_gain``."""
+    significant gain is below ``min_improvement`` but at least ``consistent_gain``.  ``reweigh(r)``: per-window
+    factors of the losses when a two-effect model is tested against its part ``r`` (or None: unchanged)."""
     keys = m.candidate.keys
     if len(keys) == 1:
         refs = [base]
@@ -156,7 +157,8 @@ def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, sprea
     tests = []
     ok = True
     for r in refs:
-        t = paired_test(m.losses, r.losses, clusters)
+        f = reweigh(r) if reweigh is not None and len(keys) > 1 else None
+        t = paired_test(m.losses, r.losses, clusters) if f is None else paired_test(m.losses * f, r.losses * f, clusters)
         t["against"] = r.label
         tests.append(t)
         relevant = t["gain"] >= options.min_improvement
@@ -168,7 +170,7 @@ def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, sprea
     return bool(ok), tests
 
 
-def decide(base: Scored, models: list, clusters, options, mimic=None, spread=None) -> dict:
+def decide(base: Scored, models: list, clusters, options, mimic=None, spread=None, reweigh=None) -> dict:
     """The naming rule (module docstring) on scored models.
 
     Parameters
@@ -188,6 +190,12 @@ def decide(base: Scored, models: list, clusters, options, mimic=None, spread=Non
         model's effects across maneuver groups
         (:func:`reachconf.diagnose.consistency.model_spread`); None: the
         consistency route is closed.
+    reweigh : callable, optional
+        ``reweigh(single) -> ndarray``: per-window factors of the held-out
+        losses when a two-effect model is tested against its one-effect part
+        ``single`` (``loss_scale = "case"``: the case weights recomputed from
+        that part's own held-out misfit, :func:`reachconf.diagnose.scales.reweigh_factors`);
+        None: the losses as scored.
 
     Returns
     -------
@@ -203,7 +211,7 @@ def decide(base: Scored, models: list, clusters, options, mimic=None, spread=Non
     singles = {m.candidate.keys: m for m in models if len(m.candidate.keys) == 1}
     tests, admissible = {}, []
     for m in models:
-        ok, t = _admissible(m, base, singles, clusters, options, spread)
+        ok, t = _admissible(m, base, singles, clusters, options, spread, reweigh)
         tests[m.label] = t
         if ok:
             admissible.append(m)

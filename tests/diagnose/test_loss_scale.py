@@ -131,3 +131,35 @@ def test_a_few_wild_runs_do_not_drown_an_effect_present_in_every_run():
     weights = rep.base["loss_scale"]["per_case"]
     assert set(weights) == {c.name for c in suite} and max(weights["c0"], weights["c1"]) < min(
         weights[f"c{i}"] for i in range(2, 6))
+
+
+def test_reweigh_factors_are_the_case_weights_of_a_models_own_misfit_by_hand():
+    from reachconf.diagnose.scales import reweigh_factors
+
+    layout = {"case": np.array([0, 0, 1, 1, 1]), "weights": np.array([0.5, 1.0]), "elements": np.array([2.0, 2.0])}
+    # case 0: weighted window losses 8 = 0.5^2 * 2 elements * 4^2 -> rms 4 -> new weight 1/4, factor (0.25/0.5)^2
+    # case 1: rms sqrt(0.5) < 1 -> new weight 1, factor 1
+    f = reweigh_factors(np.array([8.0, 8.0, 1.0, 1.0, 1.0]), layout)
+    np.testing.assert_allclose(f, [0.25, 0.25, 1.0, 1.0, 1.0])
+
+
+def test_a_second_effect_is_tested_with_the_first_effects_own_case_weights():
+    from reachconf.diagnose.effects import EFFECTS
+    from reachconf.diagnose.scales import reweigh_factors
+    from reachconf.diagnose.select import Scored, decide
+
+    a, b = (EFFECTS["actuator_lag"], "u"), (EFFECTS["output_offset"], "x")
+    clusters = np.arange(10)
+    base = Scored(Candidate(()), np.full(10, 100.0))
+    first = Scored(Candidate((a,)), np.r_[np.full(5, 4.0), np.full(5, 40.0)])  # runs 5-9: misfit it cannot remove
+    # the pair removes 3 noise units in every run the first effect follows, +-10 at random in the others
+    pair = Scored(Candidate((a, b)), first.losses - np.r_[np.full(5, 3.0), [10.0, -9.0, 11.0, -10.0, 9.0]])
+    second = Scored(Candidate((b,)), np.full(10, 100.0))
+    layout = {"case": clusters, "weights": np.ones(10), "elements": np.ones(10)}
+    opts = DiagnoseOptions(min_improvement=0.3)
+    plain = decide(base, [first, second, pair], clusters, opts)
+    assert plain["chosen"] is first  # the pair against the first effect: gain 0.12, z 1.1
+    d = decide(base, [first, second, pair], clusters, opts, reweigh=lambda m: reweigh_factors(m.losses, layout))
+    assert d["chosen"] is pair
+    (t,) = [t for t in d["tests"][pair.label] if t["against"] == first.label]
+    assert t["z"] >= opts.z_name and t["gain"] >= 0.3  # z 3.1, gain 0.40
