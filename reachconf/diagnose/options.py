@@ -60,10 +60,12 @@ class DiagnoseOptions:
         An effect (or a second effect) is added only if its held-out gain is
         significant: paired z statistic of the held-out losses over clusters
         (cases) at least ``z_name``.
-    min_improvement : float, default 0.4
+    min_improvement : float, default 0.3
         ... and relevant: it lowers the held-out prediction loss of the model
         it is added to by at least this share (chosen on the validation
-        protocol's tuning suites, docs/diagnosis-validation.md).
+        protocol's tuning suites, docs/diagnosis-validation.md; a second
+        effect is judged with the case weights of the first effect's own
+        misfit when ``loss_scale="case"``).
     consistent_gain : float, default 0.2
         The consistency route to relevance: an effect whose significant gain
         is below ``min_improvement`` but at least this share is still
@@ -139,7 +141,7 @@ class DiagnoseOptions:
     pair_top: int = 4
     pair_next: int = 2
     z_name: float = 3.0
-    min_improvement: float = 0.4
+    min_improvement: float = 0.3
     consistent_gain: float = 0.2
     max_spread: float = 0.0
     z_separate: float = 1.5
