@@ -153,7 +153,8 @@ def redecide(row, cache, **thresholds) -> dict:
     """The decision on a stored result with other thresholds (no refitting): status, named parts, alternatives.
 
     The consistency route uses the spreads the run measured (``decision["consistency"]``); a model whose spread
-    was not measured cannot be named by it."""
+    was not measured cannot be named by it.  The identifiability check uses the mimic losses the run measured
+    against its chosen model (``decision["identifiability"]``), when the same model is chosen."""
     data = _losses(str(Path(cache) / "results" / f"{stem(row['spec'])}.npz"))
     base = Scored(Candidate(()), data["base"])
     models = [Scored(Candidate(tuple((EFFECTS[e], t) for e, t in m["parts"])), data[f"model{i}"])
@@ -162,8 +163,14 @@ def redecide(row, cache, **thresholds) -> dict:
     opts = DiagnoseOptions(**thresholds)
     layout = {k: data[f"layout_{k}"] for k in ("case", "weights", "elements")} if "layout_case" in data else None
     reweigh = (lambda m: reweigh_factors(m.losses, layout)) if layout is not None else None
+    # the identifiability check's stored mimic losses, valid when the same model is chosen as in the run
+    checked, run_choice = row["decision"].get("identifiability", {}), row["decision"].get("model")
+
+    def mimic(a, b):
+        return checked.get(b.label, {}).get("mimic_loss") if a.label == run_choice else None
+
     d = decide(base, models, data["clusters"], opts, spread=lambda m: measured.get(m.label, {}).get("spread"),
-               reweigh=reweigh)  # fmt: skip
+               reweigh=reweigh, mimic=mimic)  # fmt: skip
     chosen = d["chosen"]
     return {"status": d["status"], "named_parts": [list(k) for k in chosen.candidate.keys] if chosen else [],
             "alternatives": [{"parts": [list(k) for k in m.candidate.keys]} for m, _ in d["alternatives"]]}
