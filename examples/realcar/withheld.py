@@ -116,6 +116,9 @@ def clean_value(clean, effect, target, param):
 def judge(report, clean, truth, tolerance=0.3) -> dict:
     """Is the injected effect named first and sized within ``tolerance`` relative to the clean run?
 
+    First: the first named effect that the clean run's diagnosis does not name (the car's own effects, such as
+    its tyre saturation, are named in both).
+
     Size: how far the named parameter moved from the clean run's fit of the
     same effect (``found - clean``), against the injected value; for a scale,
     ``found / clean - 1`` against ``k - 1``.
@@ -123,7 +126,10 @@ def judge(report, clean, truth, tolerance=0.3) -> dict:
     eff, tgt = truth["effect"], truth["target"]
     (param, size), = truth["params"].items()
     named = [(e["effect"], e["target"]) for e in report.named]
-    first = bool(named) and named[0] == (eff, tgt)
+    # first among what the clean run does not name (the car's own effects, e.g. its tyre saturation, stay named)
+    own = {(e["effect"], e["target"]) for e in clean.named}
+    new = [n for n in named if n not in own]
+    first = bool(new) and new[0] == (eff, tgt)
     ref = clean_value(clean, eff, tgt, param)
     entry = next((e for e in report.named if (e["effect"], e["target"]) == (eff, tgt)), None)
     found = float(entry["params"][param]) if entry else clean_value(report, eff, tgt, param)

@@ -280,6 +280,12 @@ def test_judge_sizes_offsets_additively_and_scales_relative_to_the_clean_fit():
                 {"effect": "input_offset", "target": "delta", "params": {"c": 0.012}}], [])  # fmt: skip
     j = withheld.judge(both, clean, {"effect": "input_offset", "target": "delta", "params": {"c": 0.01}})
     assert not j["named_first"] and not j["sized"] and j["from_named_model"]
+    # the car's own effect, named in the clean run too, does not count: the injected one is the first new name
+    own = Rep([{"effect": "tire_fiala", "target": "axles", "params": {"mu": 1.4}}], clean.ranked_effects)
+    tyre_first = Rep([{"effect": "tire_fiala", "target": "axles", "params": {"mu": 1.4}}, found.named[0]], [])
+    assert withheld.judge(tyre_first, own, {"effect": "input_offset", "target": "delta", "params": {"c": 0.01}})["named_first"]
+    assert not withheld.judge(tyre_first, clean, {"effect": "input_offset", "target": "delta",
+                                                  "params": {"c": 0.01}})["named_first"]  # fmt: skip
 
 
 #: the slow checks: values other than the example's (withheld.VALUES) and the default checks'.  The steering
