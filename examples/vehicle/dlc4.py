@@ -16,13 +16,14 @@ identified as in ``run.py`` (step 1; ``--params``: taken from its
    actuator's nonlinearity the cause?);
 4. the initial set shrunk to its centre (the best any split of the state set
    can do) and α scaled down: when the reach fails then;
-5. up to the failure of the tensor-order-2 reach, the width of its sets per
+5. one channel of ``W_opt`` at a time (the others at their centres): which drive the failure;
+6. up to the failure of the tensor-order-2 reach, the width of its sets per
    state over the spread of ``--samples`` simulated trajectories (corners
    of the initial set, corners of ``W`` held or switched at random), and,
    for the rate-limited actuator, the range of the argument
    ``k (delta_t - delta) / r`` of its ``tanh`` in both.
 
-Prints the findings and writes them to ``--out`` (JSON).  Measured: 15.5 s wall for two runs, identification included (warm caches).
+Prints the findings and writes them to ``--out`` (JSON).  Measured: 27 s wall for two runs, identification included (warm caches).
 """
 
 from __future__ import annotations
@@ -149,6 +150,12 @@ def diagnose(name, suite, built, steering, count):
         W = rc.Interval(W_opt.center - a * W_opt.radius, W_opt.center + a * W_opt.radius)
         out["alpha"][str(a)] = {"fails_at": reach_until(model, X0, t, U, W, OPTIONS["order 2"])[1],
                                 "fails_at_from_centre": reach_until(model, point, t, U, W, OPTIONS["order 2"])[1]}
+    c, g = W_opt.center, W_opt.radius
+    out["channels"] = {}
+    for j, name_j in enumerate(model.disturbance_names):
+        only = np.where(np.arange(g.size) == j, g, 0.0)
+        out["channels"][name_j] = {"radius": float(g[j]), "fails_at": reach_until(
+            model, X0, t, U, rc.Interval(c - only, c + only), OPTIONS["order 2"])[1]}  # fmt: skip
     X = sample(model, X0, t, U, W_opt, count)
     when = out["reach"]["order 2"]["fails_at"]
     cut = t.size if when is None else int(np.searchsorted(t, when - 0.05))
@@ -168,6 +175,8 @@ def report(d, names) -> str:
     for a, r in d["alpha"].items():
         lines.append(f"  alpha = {a}: {fails(r['fails_at'])}; from the centre of X0 alone: "
                      f"{fails(r['fails_at_from_centre'])}")  # fmt: skip
+    lines.append("  one channel of W_opt alone: " + "; ".join(
+        f"{n} (±{r['radius']:.3g}) {fails(r['fails_at'])}" for n, r in d["channels"].items()))  # fmt: skip
     lines.append("  t      reach width / sampled spread: " + " ".join(f"{n:>6s}" for n in names)
                  + ("   tanh argument: samples | reach" if d["widths"] and "arg_reach" in d["widths"][0] else ""))
     for w in d["widths"]:

@@ -160,6 +160,7 @@ def test_dlc4_diagnosis_on_a_quick_run(quick, tmp_path):
     (d,) = json.loads(found.read_text())
     assert d["run"] == "LC_2_1" and d["trace_conformant"] and len(d["W_opt"]) == 6
     assert set(d["reach"]) == {"order 2", "order 3", "adaptive"} and set(d["alpha"]) == {"0.1", "0.25", "0.5", "1.0"}
+    assert list(d["channels"]) == ["w1", "w2", "w3", "w4", "w5", "w6"]
     # the gentle 2 m/s^2 lane change: the reach of W_opt lasts the whole run, and it encloses the simulations
     assert d["reach"]["order 2"]["fails_at"] is None and d["other_actuator"]["fails_at"] is None
     assert d["widths"] and all(min(w["ratio"]) >= 1.0 - 1e-6 for w in d["widths"])
