@@ -30,14 +30,16 @@ DEG = np.pi / 180
 V5 = np.array([0.05, 0.05, 0.5 * DEG, 0.1, 0.1, 0.8 * DEG])  # Table 5
 CASES = (("DLC", 2.0, None), ("DLC", 4.0, None), ("SW", 2.0, None), ("SL", 2.0, 10.0), ("SL", 4.0, 10.0))
 
+# peak_memory (VmHWM), not ru_maxrss: after vfork + exec that is at least this (parent) process's own peak
 CHILD = """
 import json, resource, sys, time
+from reachconf.budget import peak_memory
 from reachconf.cli import main
 t0 = time.perf_counter()
 code = main(["conform", sys.argv[1], "--kind", sys.argv[2], "--json", sys.argv[3]])
 r = resource.getrusage(resource.RUSAGE_SELF)
 print(json.dumps({"exit": code, "wall": time.perf_counter() - t0, "cpu": r.ru_utime + r.ru_stime,
-                  "peak_mb": r.ru_maxrss / 1024}))
+                  "peak_mb": peak_memory() / 2**20}))
 """
 
 

@@ -20,7 +20,7 @@ import time
 from reachconf.errors import ResourceError
 
 __all__ = ["available_memory", "check_memory", "TimeBudget", "format_bytes", "tube_bytes_per_step",
-           "progress_bar"]
+           "progress_bar", "peak_memory"]
 
 
 def format_bytes(n: float) -> str:
@@ -76,6 +76,35 @@ def available_memory() -> float:
             free = float("inf")
     cg = _cgroup_free()
     return min(free, cg) if cg is not None else free
+
+
+def peak_memory() -> float:
+    """Peak resident memory of this process's own image so far, in bytes.
+
+    Linux: ``VmHWM`` of ``/proc/self/status``.  Not ``getrusage(RUSAGE_SELF).ru_maxrss``:
+    at ``exec`` Linux keeps the larger of its own peak and the peak of the
+    memory image it replaces, which for a child started with ``vfork`` +
+    ``exec`` (Python's ``subprocess``) is the *parent's* peak — a command
+    started from a pytest or notebook process that once held 3 GB reports
+    3 GB.  Elsewhere (no ``/proc``) ``ru_maxrss`` is the fallback (bytes on
+    macOS, KB otherwise).
+
+    Returns
+    -------
+    float
+        Bytes.
+    """
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        pass
+    import resource
+
+    peak = float(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+    return peak if sys.platform == "darwin" else peak * 1024
 
 
 def check_memory(what: str, samples: int, per_sample: float, fixed: float = 0.0, hint: str = "") -> float:

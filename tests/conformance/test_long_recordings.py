@@ -9,12 +9,36 @@ import pytest
 from reachconf.demo import make_long_case
 from reachconf.io import TestSuite, save_suite
 
+# the child's own peak (VmHWM): ru_maxrss would report the pytest process's peak (3.3 GB after the slow reach tests)
 SCRIPT = """
-import json, resource, sys
+import json, sys
+from reachconf.budget import peak_memory
 from reachconf.cli import main
 code = main(["conform", sys.argv[1], "--kind", "both", "--json", sys.argv[2]])
-print(json.dumps({"exit": code, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+print(json.dumps({"exit": code, "peak_mb": peak_memory() / 2**20}))
 """
+
+#: a process that peaks at 400 MB, then starts a child that reports its own peak and its ru_maxrss (MB)
+INHERIT = """
+import json, resource, subprocess, sys
+import numpy as np
+from reachconf.budget import peak_memory
+a = np.ones(400 * 2**20 // 8)
+del a
+child = "import json, resource; from reachconf.budget import peak_memory; print(json.dumps([peak_memory() / 2**20, "
+child += "resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024]))"
+out = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True, check=True).stdout
+print(json.dumps([peak_memory() / 2**20] + json.loads(out)))
+"""
+
+
+def test_peak_memory_is_the_process_own_not_its_parents():
+    """``peak_memory`` in a child is the child's, after its parent peaked at 400 MB (``ru_maxrss`` may not be)."""
+    out = subprocess.run([sys.executable, "-c", INHERIT], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    parent, child, child_maxrss = json.loads(out.stdout.strip().splitlines()[-1])
+    assert parent > 400  # the helper sees a real peak
+    assert child < 100, (child, child_maxrss)  # a Python interpreter with numpy not imported: ~15 MB
 
 
 @pytest.mark.slow

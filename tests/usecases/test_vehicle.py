@@ -144,3 +144,26 @@ def test_table6_with_the_rate_limited_steering(tmp_path):
     for g, W in res["table6"].items():
         assert np.all(np.isfinite(W)) and res["table6_conformant"][g] in (True, False)
     assert "rate-limited steering" in (tmp_path / "vehicle.md").read_text()
+
+
+def test_dlc4_diagnosis_on_a_quick_run(quick, tmp_path):
+    """examples/vehicle/dlc4.py (the README's diagnosis of DLC_4) runs and reports every item on a quick run."""
+    import importlib.util
+
+    _, out, _ = quick
+    spec = importlib.util.spec_from_file_location("vehicle_dlc4", load_example("vehicle").__file__.replace("run.py", "dlc4.py"))
+    dlc4 = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(dlc4)
+    found = tmp_path / "dlc4.json"
+    assert dlc4.main(["--campaign", str(out / "campaign_quick"), "--runs", "LC_2_1", "--samples", "8",
+                      "--params", str(out / "vehicle.json"), "--out", str(found)]) == 0  # fmt: skip
+    (d,) = json.loads(found.read_text())
+    assert d["run"] == "LC_2_1" and d["trace_conformant"] and len(d["W_opt"]) == 6
+    assert set(d["reach"]) == {"order 2", "order 3", "adaptive"} and set(d["alpha"]) == {"0.1", "0.25", "0.5", "1.0"}
+    assert list(d["channels"]) == ["w1", "w2", "w3", "w4", "w5", "w6"]
+    # the gentle 2 m/s^2 lane change: the reach of W_opt lasts the whole run, and it encloses the simulations
+    assert d["reach"]["order 2"]["fails_at"] is None and d["other_actuator"]["fails_at"] is None
+    assert d["widths"] and all(min(w["ratio"]) >= 1.0 - 1e-6 for w in d["widths"])
+    for w in d["widths"]:
+        lo, hi = w["arg_reach"]
+        assert lo <= w["arg_samples"][0] + 1e-6 and w["arg_samples"][1] <= hi + 1e-6

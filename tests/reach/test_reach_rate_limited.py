@@ -1,0 +1,55 @@
+"""Soundness of the reach of the closed-loop bicycle whose steering runs at its rate limit (``r tanh(k e / r)``).
+
+Table 6's rate-limited model (``bicycle_closed_loop_rate_limited``) in the regime where DLC_4 fails: a lane
+change over 20 m at 10 m/s asks for more than the actuator's 0.4 rad/s, so the steering rate is at its limit
+for most of the run.  200 seeded trajectories (corners and random points of X0, extreme disturbances switched
+at random every sample): every state at a sample time lies in its time-point set, every dense sample in the
+time-interval set of its step.
+"""
+
+import numpy as np
+import pytest
+from test_reach import _assert_tight, _assert_tube_contains, _simulate_many
+
+import reachconf as rc
+from reachconf.demo import lane_change_reference
+from reachconf.models import bicycle_closed_loop_rate_limited
+
+RNG_SEED = 20261125
+TIMES = np.round(np.arange(0.0, 2.5 + 1e-9, 0.1), 10)
+X_START = np.array([0.0, 0.0, 0.0, 10.0, 0.0, 0.0, 0.0, 0.0])
+X0_RADIUS = 0.2 * np.array([0.02, 0.02, 0.002, 0.02, 0.01, 0.002, 0.02, 0.002])
+X0 = rc.Interval(X_START - X0_RADIUS, X_START + X0_RADIUS)
+W_RADIUS = 0.2 * np.array([0.02, 0.02, 0.005, 0.05, 0.05, 0.02])
+W = rc.Interval(-W_RADIUS, W_RADIUS)
+
+
+@pytest.fixture(scope="module")
+def saturated_runs():
+    rng = np.random.default_rng(RNG_SEED)
+    model = bicycle_closed_loop_rate_limited()
+    inputs = lane_change_reference(TIMES, start=3.0, length=20.0)
+    return model, inputs, _simulate_many(model, X0, TIMES, W, inputs, 200, rng, dense=2)
+
+
+def test_the_runs_are_at_the_steering_rate_limit(saturated_runs):
+    """The regime of the test: most of the time the steering moves at over 90 % of its rate limit."""
+    model, _, (X, _, _) = saturated_runs
+    rate = np.abs(np.diff(X[:, :, 7], axis=1)) / np.diff(TIMES)
+    assert np.mean(rate > 0.9 * model.params["r_delta"]) > 0.5
+    assert rate.max() <= model.params["r_delta"] * (1 + 1e-6)
+
+
+@pytest.mark.parametrize(
+    "options",
+    [rc.ReachOptions(algorithm="lin", tensor_order=2, time_step=0.01, zonotope_order=50, intermediate_order=50,
+                     error_order=5),
+     rc.ReachOptions(algorithm="poly", time_step=0.01, zonotope_order=50, intermediate_order=50, error_order=5),
+     rc.ReachOptions()],
+    ids=["lin2", "poly", "adaptive"],
+)  # fmt: skip
+def test_rate_limited_closed_loop_at_the_rate_limit_sound(saturated_runs, options):
+    model, inputs, (X, td, Xd) = saturated_runs
+    tube = rc.reach(model, X0, TIMES, inputs=inputs, W=W, options=options)
+    _assert_tube_contains(tube, X, td, Xd)
+    _assert_tight(tube, X)
