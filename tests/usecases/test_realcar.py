@@ -291,7 +291,7 @@ def test_judge_sizes_offsets_additively_and_scales_relative_to_the_clean_fit():
 #: the slow checks: values other than the example's (withheld.VALUES) and the default checks'.  The steering
 #: offset and the ax scale are named (next to the car's own tyre saturation); the others are found (sized within
 #: 5 % with the default case weights) but not *named*: next to the tyre each removes far less than the naming
-#: rule's 40 % of the remaining held-out loss, most of which is the car's own lateral-velocity misfit.
+#: rule's 30 % of the remaining held-out loss, most of which is the car's own lateral-velocity misfit.
 _NOT_RELEVANT = ("measured (full run, default options, 25 Nov): {} sized within {} of the truth and ranked {}, "
                  "but only the car's own tyre saturation is named")  # fmt: skip
 SLOW_CASES = [
