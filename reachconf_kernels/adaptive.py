@@ -19,17 +19,19 @@ reachability analysis of nonlinear systems", HSCC 2021 (CORA's
 * **splitting**: when the floor exceeds ``split_fraction * beta``, meeting the
   budget by the step size would cost more than twice the steps (the floor
   halves with the set, the slope does not), so the caller splits the set.
+* **linear part**: the excess of the step's input solution and of the
+  exponential's remainder over the exact linear solution, which the
+  abstraction error does not see, is held to a share of the budget too
+  (:mod:`reachconf_kernels.adaptive_linear`; it caps the next step).
 * **orders**: the time-point and time-interval sets are reduced
   error-bounded (:func:`~reachconf_kernels.reduce_adaptive.reduce_adaptive`)
-  with a tolerance ``reduction_share * beta * dt`` per step (the reduction
-  gets a share of the budget per unit time; at most ``MAX_RED_TOL``), capped
-  by the zonotope order; the images of the start set's generators are kept
-  (splits halve them).  Intermediate sets use the fixed intermediate and
-  error orders (the error-bounded reduction of the large ``quad_map``
-  outputs cost twice Girard's and changed little).
-* **Taylor terms** of the matrix exponential: enough that the first
-  neglected term of ``e^{|A| dt}`` is below 1 % (at least ``taylor_min``;
-  the remainder is bounded either way).
+  with a tolerance ``reduction_share * beta * dt`` per step (at most
+  ``MAX_RED_TOL``), capped by the zonotope order; the images of the start
+  set's generators are kept (splits halve them).  Intermediate sets use the
+  fixed intermediate and error orders (error-bounded reduction of the large
+  ``quad_map`` outputs cost twice Girard's and changed little).
+* **Taylor terms**: the first neglected term of ``e^{|A| dt}`` below 1 %
+  (at least ``taylor_min``; the remainder is bounded either way).
 
 One call runs one set (branch) over the sample grid from ``(t0, k0)`` and
 returns when it is done, when a split is wanted, when the order-3 functions
@@ -46,6 +48,8 @@ import numpy as np
 from numba import njit, types
 
 from reachconf_kernels import zonotope as Z
+from reachconf_kernels.zonotope import piece_hulls  # noqa: F401 (used from here by tube, reach_stream)
+from reachconf_kernels.adaptive_linear import linear_step_cap
 from reachconf_kernels.nonlinear import (
     NO_CONVERGENCE,
     OK,
@@ -74,8 +78,8 @@ N_REC = 10
 
 # fpar entries
 (P_BUDGET, P_DT_MAX, P_DT_MIN, P_RED_SHARE, P_MAX_ORDER, P_ERR_ORDER, P_INTER_ORDER, P_ROUND, P_SPLIT_FRAC,
- P_SPLIT_AFTER, P_SLACK, P_T0, P_EXCESS, P_EXCESS_REL) = range(14)
-N_FPAR = 14
+ P_SPLIT_AFTER, P_SLACK, P_T0, P_EXCESS, P_EXCESS_REL, P_LIN_GOAL, P_HORIZON) = range(16)
+N_FPAR = 16
 # ipar entries
 I_KAPPA_MODE, I_HAVE3, I_TAYLOR_MIN, I_MAX_ITER, I_CAN_SPLIT, I_KEEP = range(6)
 N_IPAR = 6
@@ -279,6 +283,8 @@ def adaptive_run(
         J = np.zeros((n, zq.shape[0]))
         jac(zq, p, J)
         A = np.ascontiguousarray(J[:, :n])
+        BW, fz = np.ascontiguousarray(J[:, n + u.shape[0] :]) @ WG, np.empty(n)
+        f(zq, p, fz)
         rho0 = -1.0
         tries = 0
         state[S_FAIL_CODE] = 0.0
@@ -412,6 +418,10 @@ def adaptive_run(
             state[S_DT] = 1.1 * base
         else:
             state[S_DT] = base
+        # -- and the linear part's errors (input solution, exponential remainder) to their share of the budget
+        lin = linear_step_cap(A, BW, fz, last_rad, dt, r, fpar[P_LIN_GOAL] * beta, 10.0 * dt_min,
+                              fpar[P_HORIZON])
+        state[S_DT] = min(state[S_DT], lin)
         # -- back to order 2 when its floor fits the budget again
         if kappa == 3 and kmode == 0:
             state[S_SINCE_CHECK] += 1
@@ -478,18 +488,3 @@ def split_choice(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt, keep, c
         if r < r_other:
             j_other, r_other = j, r
     return rate, j_keep, r_keep, j_other, r_other
-
-
-@njit(cache=True)
-def piece_hulls(c, G, ng):
-    """Interval hulls ``(lo, hi)`` (P, n) of sets stored back to back: centres ``c`` (P, n), generators in the
-    columns of ``G`` (n, sum ng), set ``p`` owning ``ng[p]`` consecutive columns; rounded outward."""
-    P, n = c.shape
-    lo = np.empty((P, n))
-    hi = np.empty((P, n))
-    col = 0
-    for s in range(P):
-        g = ng[s]
-        lo[s], hi[s] = Z.interval_hull(c[s], G[:, col : col + g])
-        col += g
-    return lo, hi
