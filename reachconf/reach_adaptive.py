@@ -97,7 +97,6 @@ RETRY_SPLITS = 0.25
 NO_SPLIT_SPAN = 0.05
 
 
-
 @dataclass
 class _Branch:
     index: int
@@ -324,6 +323,7 @@ def _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=None,
     fpar[ak.P_EXCESS_REL] = FLOOR_EXCESS_REL
     fpar[ak.P_LIN_GOAL] = LINEAR_SHARE
     fpar[ak.P_HORIZON] = horizon
+    fpar[ak.P_DIST_W] = RESTART_W
     ipar = np.zeros(ak.N_IPAR, dtype=np.int64)
     ipar[ak.I_KAPPA_MODE] = kappa_mode
     ipar[ak.I_TAYLOR_MIN] = int(opts.taylor_terms)

@@ -78,8 +78,9 @@ N_REC = 10
 
 # fpar entries
 (P_BUDGET, P_DT_MAX, P_DT_MIN, P_RED_SHARE, P_MAX_ORDER, P_ERR_ORDER, P_INTER_ORDER, P_ROUND, P_SPLIT_FRAC,
- P_SPLIT_AFTER, P_SLACK, P_T0, P_EXCESS, P_EXCESS_REL, P_LIN_GOAL, P_HORIZON) = range(16)
-N_FPAR = 16
+ P_SPLIT_AFTER, P_SLACK, P_T0, P_EXCESS, P_EXCESS_REL, P_LIN_GOAL, P_HORIZON,
+ P_DIST_W) = range(17)
+N_FPAR = 17
 # ipar entries
 I_KAPPA_MODE, I_HAVE3, I_TAYLOR_MIN, I_MAX_ITER, I_CAN_SPLIT, I_KEEP = range(6)
 N_IPAR = 6
@@ -285,6 +286,7 @@ def adaptive_run(
         A = np.ascontiguousarray(J[:, :n])
         BW, fz = np.ascontiguousarray(J[:, n + u.shape[0] :]) @ WG, np.empty(n)
         f(zq, p, fz)
+        w_rate = relative_rate(np.abs(BW).sum(axis=1), row_radius(G), 0.0)  # the disturbance's growth rate
         rho0 = -1.0
         tries = 0
         state[S_FAIL_CODE] = 0.0
@@ -343,8 +345,9 @@ def adaptive_run(
                     state[S_FLOOR_AGE] = 0.0
                     state[S_FLOOR_KAPPA] = kappa
                     state[S_FLOOR_RATE] = rho
-            # the floor is over budget: order 3 if it lowers the floor
-            if rho0 > split_frac * beta and kappa == 2 and kmode == 0:
+            # the floor is over budget: order 3 if it lowers the floor (asked when the floor was computed, not reused)
+            dist = w_rate > fpar[P_DIST_W] * rho  # the set grows mostly by the disturbance
+            if rho0 > split_frac * beta and kappa == 2 and kmode == 0 and (state[S_FLOOR_AGE] == 0.0 or not dist):
                 if not have3:
                     state[S_DT] = dt
                     return NEED_ORDER3, t, k, c, G
@@ -422,13 +425,16 @@ def adaptive_run(
         lin = linear_step_cap(A, BW, fz, last_rad, dt, r, fpar[P_LIN_GOAL] * beta, 10.0 * dt_min,
                               fpar[P_HORIZON])
         state[S_DT] = min(state[S_DT], lin)
-        # -- back to order 2 when its floor fits the budget again
+        # -- back to order 2 when its floor fits the budget again, or, where the floor is over budget and the set grows
+        # mostly by the disturbance, when order 3 no longer lowers the floor by 10 % (order 2 steps cost about 2/3)
         if kappa == 3 and kmode == 0:
             state[S_SINCE_CHECK] += 1
-            if state[S_SINCE_CHECK] >= 10 and rho < 0.5 * beta:
+            over = state[S_FLOOR] > split_frac * beta and w_rate > fpar[P_DIST_W] * rho
+            if state[S_SINCE_CHECK] >= 10 and (rho < 0.5 * beta or over):
                 state[S_SINCE_CHECK] = 0
                 rho2 = _floor_rate(ctp, Gtp, u, wc, WG, p, hess, lagrange_iv, 2, fpar, dt)
-                if rho2 <= 0.3 * beta:
+                if rho2 <= 0.3 * beta or (over and rho2 * 0.9 <= _floor_rate(
+                        ctp, Gtp, u, wc, WG, p, hess, lagrange_iv, 3, fpar, dt)):  # fmt: skip
                     kappa = 2
         state[S_KAPPA] = kappa
         err_warm[:] = e

@@ -201,6 +201,28 @@ def test_closed_loop_bicycle_lane_change_sound(closed_loop_runs, options):
     _assert_tight(tube, X)
 
 
+def test_closed_loop_bicycle_adaptive_order_back_to_2_sound():
+    """The first second of the benchmark's lane change (Table 6 disturbances, the 8-s run's error rate): the floor is
+    over budget and the set grows mostly by the disturbance, so the adaptive goes to tensor order 3 and back to 2
+    when order 3 no longer lowers the floor by 10 %; 200 trajectories stay in the tube (time points and dense)."""
+    from reachconf.datasets.vehicle_campaign import reference_path
+    from reachconf.models import bicycle_closed_loop
+
+    model, ref = bicycle_closed_loop(), reference_path("LC", 2.0, 10.0)
+    t = np.round(np.arange(0.0, 1.0 + 1e-9, 0.02), 10)
+    U = np.column_stack([np.interp(t, ref["t"], ref[k]) for k in model.input_names])
+    x0, r0 = np.array([0.0, 0.0, 0.0, 10.0, 0.0, 0.0]), np.array([0.05, 0.05, np.radians(0.5), 0.1, 0.1, np.radians(0.8)])
+    X0 = rc.Interval(x0 - r0, x0 + r0)
+    W = rc.Interval([-0.0831, -0.1173, -0.0593, -0.3203, -0.1503, -0.4414],
+                    [0.0552, 0.0274, 0.0678, 0.7775, 0.1051, 0.7231])  # fmt: skip
+    opts = rc.ReachOptions(algorithm=rc.AdaptiveReach(error_budget=0.7 / 8))  # the 8-s run's budget per second
+    tube = rc.reach(model, X0, t, inputs=U, W=W, options=opts)
+    order = tube.log.tensor_order
+    assert np.any(order == 3) and np.any(order[np.argmax(order == 3) :] == 2)
+    X, td, Xd = _simulate_many(model, X0, t, W, U, 200, np.random.default_rng(RNG_SEED + 12), dense=2)
+    _assert_tube_contains(tube, X, td, Xd)
+
+
 # ----------------------------------------------------------- linear systems
 def test_linear_rotation_matches_closed_form():
     """x' = y, y' = -x: the set at t is the initial box rotated by -t (exactly, up to rounding)."""
