@@ -61,8 +61,8 @@ DT_MIN_FRACTION = 1e-7
 MEMORY_SHARE = 0.4
 #: Share of the budget given to the order reduction.
 REDUCTION_SHARE = 0.5
-#: Share of the budget given to the linear part's errors (:mod:`reachconf_kernels.adaptive_linear`).
-LINEAR_SHARE = 0.25
+#: Share of the budget for the linear part's errors (:mod:`reachconf_kernels.adaptive_linear`; chosen on a 3-d system).
+LINEAR_SHARE = 0.1
 #: A floor above this fraction of the budget makes a split cheaper than smaller steps.
 SPLIT_FRACTION = 0.6
 #: The part of the error rate that smaller steps remove (rate minus floor) is held to this share of the budget ...

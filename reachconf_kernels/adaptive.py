@@ -421,9 +421,10 @@ def adaptive_run(
             state[S_DT] = 1.1 * base
         else:
             state[S_DT] = base
-        # -- and the linear part's errors (input solution, exponential remainder) to their share of the budget
-        lin = linear_step_cap(A, BW, fz, last_rad, dt, r, fpar[P_LIN_GOAL] * beta, 10.0 * dt_min,
-                              fpar[P_HORIZON])
+        # -- the linear part's errors (input solution, exponential remainder): their share of the budget over the time
+        # since the start (they pile up about in proportion to it, so the share holds whatever the horizon)
+        goal = fpar[P_LIN_GOAL] * beta * fpar[P_HORIZON] / (t - fpar[P_T0])
+        lin = linear_step_cap(A, BW, fz, last_rad, dt, r, goal, 10.0 * dt_min, fpar[P_HORIZON])
         state[S_DT] = min(state[S_DT], lin)
         # -- back to order 2 when its floor fits the budget again, or, where the floor is over budget and the set grows
         # mostly by the disturbance, when order 3 no longer lowers the floor by 10 % (order 2 steps cost about 2/3)

@@ -19,8 +19,12 @@ linear algorithm, which hold the *total* error, incl. these, to the budget):
 :func:`linear_step_cap` turns their sum into a relative growth rate (like the
 abstraction error's: per unit time, relative to the set's radius, here in
 the 2-norm over the states, as the excess is not axis-aligned) and returns
-the step that holds it to a goal.  It only shapes the step size: every step
-is sound whatever its size.
+the step that holds it to a goal.  The caller's goal is a share of the error
+budget spread over the time since the start (``share * error_budget / (t -
+t0)``), not over the horizon: these errors pile up about in proportion to the
+elapsed time, like the set they are measured against, so the share holds
+over recordings of any length.  It only shapes the step size: every step is
+sound whatever its size.
 """
 
 from __future__ import annotations
@@ -59,7 +63,6 @@ def linear_excess(A, BW, fc, rad, dt, r):
     ndarray (n,)
         ``2 sum_{k>=1} |T_k B W| + E dt |B W| + E (dt/2 |fc| + rad)``.
     """
-    n = A.shape[0]
     P = taylor_powers(A, dt, r)  # P[k] = (A dt)^k / k!
     E = exp_remainder(A, dt, r)
     e = E @ (0.5 * dt * np.abs(fc) + rad)
