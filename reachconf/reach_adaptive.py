@@ -61,6 +61,8 @@ DT_MIN_FRACTION = 1e-7
 MEMORY_SHARE = 0.4
 #: Share of the budget given to the order reduction.
 REDUCTION_SHARE = 0.5
+#: Share of the budget for the linear part's errors (:mod:`reachconf_kernels.adaptive_linear`; chosen on a 3-d system).
+LINEAR_SHARE = 0.1
 #: A floor above this fraction of the budget makes a split cheaper than smaller steps.
 SPLIT_FRACTION = 0.6
 #: The part of the error rate that smaller steps remove (rate minus floor) is held to this share of the budget ...
@@ -93,7 +95,6 @@ RESTART_WINDOW = 0.01
 RETRY_SPLITS = 0.25
 #: After a split that would not help, no split is tried for this fraction of the horizon.
 NO_SPLIT_SPAN = 0.05
-
 
 
 @dataclass
@@ -320,6 +321,9 @@ def _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=None,
     fpar[ak.P_T0] = float(samples[0])
     fpar[ak.P_EXCESS] = FLOOR_EXCESS
     fpar[ak.P_EXCESS_REL] = FLOOR_EXCESS_REL
+    fpar[ak.P_LIN_GOAL] = LINEAR_SHARE
+    fpar[ak.P_HORIZON] = horizon
+    fpar[ak.P_DIST_W] = RESTART_W
     ipar = np.zeros(ak.N_IPAR, dtype=np.int64)
     ipar[ak.I_KAPPA_MODE] = kappa_mode
     ipar[ak.I_TAYLOR_MIN] = int(opts.taylor_terms)

@@ -31,7 +31,7 @@ restart cannot reach back beyond the boundary, so the sets can differ
 Limit: the budget per unit time is ``error_budget / horizon``, which over a
 recording of hours asks for steps below the smallest allowed (measured: a
 10,000-s recording of the closed-loop bicycle at 100 Hz is undecided at
-t = 0.087 s; 1,000 s works).  Such recordings need ``algorithm="lin"``.
+t = 0.057 s; 1,000 s works).  Such recordings need ``algorithm="lin"``.
 """
 
 from __future__ import annotations

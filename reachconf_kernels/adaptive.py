@@ -19,17 +19,19 @@ reachability analysis of nonlinear systems", HSCC 2021 (CORA's
 * **splitting**: when the floor exceeds ``split_fraction * beta``, meeting the
   budget by the step size would cost more than twice the steps (the floor
   halves with the set, the slope does not), so the caller splits the set.
+* **linear part**: the excess of the step's input solution and of the
+  exponential's remainder over the exact linear solution, which the
+  abstraction error does not see, is held to a share of the budget too
+  (:mod:`reachconf_kernels.adaptive_linear`; it caps the next step).
 * **orders**: the time-point and time-interval sets are reduced
   error-bounded (:func:`~reachconf_kernels.reduce_adaptive.reduce_adaptive`)
-  with a tolerance ``reduction_share * beta * dt`` per step (the reduction
-  gets a share of the budget per unit time; at most ``MAX_RED_TOL``), capped
-  by the zonotope order; the images of the start set's generators are kept
-  (splits halve them).  Intermediate sets use the fixed intermediate and
-  error orders (the error-bounded reduction of the large ``quad_map``
-  outputs cost twice Girard's and changed little).
-* **Taylor terms** of the matrix exponential: enough that the first
-  neglected term of ``e^{|A| dt}`` is below 1 % (at least ``taylor_min``;
-  the remainder is bounded either way).
+  with a tolerance ``reduction_share * beta * dt`` per step (at most
+  ``MAX_RED_TOL``), capped by the zonotope order; the images of the start
+  set's generators are kept (splits halve them).  Intermediate sets use the
+  fixed intermediate and error orders (error-bounded reduction of the large
+  ``quad_map`` outputs cost twice Girard's and changed little).
+* **Taylor terms**: the first neglected term of ``e^{|A| dt}`` below 1 %
+  (at least ``taylor_min``; the remainder is bounded either way).
 
 One call runs one set (branch) over the sample grid from ``(t0, k0)`` and
 returns when it is done, when a split is wanted, when the order-3 functions
@@ -46,6 +48,8 @@ import numpy as np
 from numba import njit, types
 
 from reachconf_kernels import zonotope as Z
+from reachconf_kernels.zonotope import piece_hulls  # noqa: F401 (used from here by tube, reach_stream)
+from reachconf_kernels.adaptive_linear import linear_step_cap
 from reachconf_kernels.nonlinear import (
     NO_CONVERGENCE,
     OK,
@@ -74,8 +78,9 @@ N_REC = 10
 
 # fpar entries
 (P_BUDGET, P_DT_MAX, P_DT_MIN, P_RED_SHARE, P_MAX_ORDER, P_ERR_ORDER, P_INTER_ORDER, P_ROUND, P_SPLIT_FRAC,
- P_SPLIT_AFTER, P_SLACK, P_T0, P_EXCESS, P_EXCESS_REL) = range(14)
-N_FPAR = 14
+ P_SPLIT_AFTER, P_SLACK, P_T0, P_EXCESS, P_EXCESS_REL, P_LIN_GOAL, P_HORIZON,
+ P_DIST_W) = range(17)
+N_FPAR = 17
 # ipar entries
 I_KAPPA_MODE, I_HAVE3, I_TAYLOR_MIN, I_MAX_ITER, I_CAN_SPLIT, I_KEEP = range(6)
 N_IPAR = 6
@@ -279,6 +284,9 @@ def adaptive_run(
         J = np.zeros((n, zq.shape[0]))
         jac(zq, p, J)
         A = np.ascontiguousarray(J[:, :n])
+        BW, fz = np.ascontiguousarray(J[:, n + u.shape[0] :]) @ WG, np.empty(n)
+        f(zq, p, fz)
+        w_rate = relative_rate(np.abs(BW).sum(axis=1), row_radius(G), 0.0)  # the disturbance's growth rate
         rho0 = -1.0
         tries = 0
         state[S_FAIL_CODE] = 0.0
@@ -337,8 +345,9 @@ def adaptive_run(
                     state[S_FLOOR_AGE] = 0.0
                     state[S_FLOOR_KAPPA] = kappa
                     state[S_FLOOR_RATE] = rho
-            # the floor is over budget: order 3 if it lowers the floor
-            if rho0 > split_frac * beta and kappa == 2 and kmode == 0:
+            # the floor is over budget: order 3 if it lowers the floor (asked when the floor was computed, not reused)
+            dist = w_rate > fpar[P_DIST_W] * rho  # the set grows mostly by the disturbance
+            if rho0 > split_frac * beta and kappa == 2 and kmode == 0 and (state[S_FLOOR_AGE] == 0.0 or not dist):
                 if not have3:
                     state[S_DT] = dt
                     return NEED_ORDER3, t, k, c, G
@@ -412,13 +421,21 @@ def adaptive_run(
             state[S_DT] = 1.1 * base
         else:
             state[S_DT] = base
-        # -- back to order 2 when its floor fits the budget again
+        # -- the linear part's errors (input solution, exponential remainder): their share of the budget over the time
+        # since the start (they pile up about in proportion to it, so the share holds whatever the horizon)
+        goal = fpar[P_LIN_GOAL] * beta * fpar[P_HORIZON] / (t - fpar[P_T0])
+        lin = linear_step_cap(A, BW, fz, last_rad, dt, r, goal, 10.0 * dt_min, fpar[P_HORIZON])
+        state[S_DT] = min(state[S_DT], lin)
+        # -- back to order 2 when its floor fits the budget again, or, where the floor is over budget and the set grows
+        # mostly by the disturbance, when order 3 no longer lowers the floor by 10 % (order 2 steps cost about 2/3)
         if kappa == 3 and kmode == 0:
             state[S_SINCE_CHECK] += 1
-            if state[S_SINCE_CHECK] >= 10 and rho < 0.5 * beta:
+            over = state[S_FLOOR] > split_frac * beta and w_rate > fpar[P_DIST_W] * rho
+            if state[S_SINCE_CHECK] >= 10 and (rho < 0.5 * beta or over):
                 state[S_SINCE_CHECK] = 0
                 rho2 = _floor_rate(ctp, Gtp, u, wc, WG, p, hess, lagrange_iv, 2, fpar, dt)
-                if rho2 <= 0.3 * beta:
+                if rho2 <= 0.3 * beta or (over and rho2 * 0.9 <= _floor_rate(
+                        ctp, Gtp, u, wc, WG, p, hess, lagrange_iv, 3, fpar, dt)):  # fmt: skip
                     kappa = 2
         state[S_KAPPA] = kappa
         err_warm[:] = e
@@ -478,18 +495,3 @@ def split_choice(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt, keep, c
         if r < r_other:
             j_other, r_other = j, r
     return rate, j_keep, r_keep, j_other, r_other
-
-
-@njit(cache=True)
-def piece_hulls(c, G, ng):
-    """Interval hulls ``(lo, hi)`` (P, n) of sets stored back to back: centres ``c`` (P, n), generators in the
-    columns of ``G`` (n, sum ng), set ``p`` owning ``ng[p]`` consecutive columns; rounded outward."""
-    P, n = c.shape
-    lo = np.empty((P, n))
-    hi = np.empty((P, n))
-    col = 0
-    for s in range(P):
-        g = ng[s]
-        lo[s], hi[s] = Z.interval_hull(c[s], G[:, col : col + g])
-        col += g
-    return lo, hi

@@ -449,3 +449,18 @@ def polygon(c, G):
         p = p - 2.0 * Gs[:, idx[k]]
         V[m + k + 1] = p
     return V[: 2 * m]
+
+
+@njit(cache=True)
+def piece_hulls(c, G, ng):
+    """Interval hulls ``(lo, hi)`` (P, n) of sets stored back to back: centres ``c`` (P, n), generators in the
+    columns of ``G`` (n, sum ng), set ``p`` owning ``ng[p]`` consecutive columns; rounded outward."""
+    P, n = c.shape
+    lo = np.empty((P, n))
+    hi = np.empty((P, n))
+    col = 0
+    for s in range(P):
+        g = ng[s]
+        lo[s], hi[s] = interval_hull(c[s], G[:, col : col + g])
+        col += g
+    return lo, hi
