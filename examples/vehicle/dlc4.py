@@ -195,15 +195,25 @@ def main(argv=None):
     ap.add_argument("--out", default=None, help="JSON file for the findings")
     ap.add_argument("--params", default=None, help="run.py's vehicle.json: its identified parameters")
     args = ap.parse_args(argv)
-    suite = load_suite(Path(args.campaign))
-    built = models(suite, json.loads(Path(args.params).read_text()) if args.params else None)
-    found = []
-    for name in args.runs.split(","):
-        d = diagnose(name, suite, built, args.steering, args.samples)
-        print(report(d, built[args.steering].state_names), flush=True)
-        found.append(d)
-    if args.out:
-        Path(args.out).write_text(json.dumps(found, indent=1))
+    from reachconf.io import atomic_write
+
+    try:
+        suite = load_suite(Path(args.campaign))
+        names = args.runs.split(",")
+        unknown = sorted(set(names) - {c.name for c in suite})
+        if unknown:
+            raise rc.DataError(f"--runs: {args.campaign} has no cases {unknown}")
+        built = models(suite, json.loads(Path(args.params).read_text()) if args.params else None)
+        found = []
+        for name in names:
+            d = diagnose(name, suite, built, args.steering, args.samples)
+            print(report(d, built[args.steering].state_names), flush=True)
+            found.append(d)
+        if args.out:
+            atomic_write(Path(args.out), json.dumps(found, indent=1))
+    except (rc.ReachconfError, OSError, json.JSONDecodeError) as exc:
+        print(f"dlc4: error: {exc}", file=sys.stderr)
+        return 2
     return 0
 
 

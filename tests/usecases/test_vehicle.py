@@ -167,3 +167,18 @@ def test_dlc4_diagnosis_on_a_quick_run(quick, tmp_path):
     for w in d["widths"]:
         lo, hi = w["arg_reach"]
         assert lo <= w["arg_samples"][0] + 1e-6 and w["arg_samples"][1] <= hi + 1e-6
+
+
+def test_dlc4_bad_input_is_one_line_and_exit_2(quick, tmp_path, capsys):
+    import importlib.util
+
+    _, out, _ = quick
+    spec = importlib.util.spec_from_file_location("vehicle_dlc4", load_example("vehicle").__file__.replace("run.py", "dlc4.py"))
+    dlc4 = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(dlc4)
+    assert dlc4.main(["--campaign", str(tmp_path / "missing")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("dlc4: error:") and "missing" in err and "\n" not in err
+    assert dlc4.main(["--campaign", str(out / "campaign_quick"), "--runs", "NOPE_1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--runs" in err and "NOPE_1" in err and "\n" not in err
