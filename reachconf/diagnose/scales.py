@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from reachconf.diagnose.fit import FitResult, window_residuals
+from reachconf.diagnose.fit import FitResult, window_counts, window_residuals
 from reachconf.diagnose.options import DiagnoseOptions
 
 __all__ = ["case_layout", "case_weights", "residual_scale", "reweigh_factors"]
@@ -83,7 +83,7 @@ def residual_scale(fit: FitResult, data, sigma, options: DiagnoseOptions) -> np.
 def case_layout(data, p: int) -> dict:
     """Where each prediction window belongs, for :func:`reweigh_factors`: ``case`` (the case of every window),
     ``weights`` (each case's weight) and ``elements`` (residual elements per window of each case)."""
-    counts = np.array([d.starts.size for d in data], dtype=np.int64)
+    counts = window_counts(data)
     return {"case": np.repeat(np.arange(len(data)), counts), "weights": np.array([d.weight for d in data], float),
             "elements": np.array([d.per_window * p for d in data], dtype=float)}  # fmt: skip
 
