@@ -133,7 +133,7 @@ def diagnose_job(job) -> dict:
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     atomic_write(npz, buf.getvalue())
-    row["models"] = [{"label": m["label"], "parts": m["parts"]} for m in sc["models"]]
+    row["models"] = [{"label": m["label"], "parts": m["parts"], "at_bound": m.get("at_bound", [])} for m in sc["models"]]
     atomic_write(path, json.dumps(row, indent=1, default=float))
     return row
 
@@ -157,7 +157,8 @@ def redecide(row, cache, **thresholds) -> dict:
     against its chosen model (``decision["identifiability"]``), when the same model is chosen."""
     data = _losses(str(Path(cache) / "results" / f"{stem(row['spec'])}.npz"))
     base = Scored(Candidate(()), data["base"])
-    models = [Scored(Candidate(tuple((EFFECTS[e], t) for e, t in m["parts"])), data[f"model{i}"])
+    models = [Scored(Candidate(tuple((EFFECTS[e], t) for e, t in m["parts"])), data[f"model{i}"],
+                     bound=tuple(m.get("at_bound", ())))
               for i, m in enumerate(row["models"])]  # fmt: skip
     measured = row["decision"].get("consistency", {})
     opts = DiagnoseOptions(**thresholds)

@@ -443,5 +443,6 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     report.tubes = tubes
     report.scores = {"clusters": clusters, "base": base_sc.losses,
                      "models": [{"label": m.label, "parts": [[e.name, t] for e, t in m.candidate.parts],
+                                 "at_bound": list(m.at_bound),
                                  "losses": m.losses} for m in models], "layout": layout}  # fmt: skip
     return report

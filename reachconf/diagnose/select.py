@@ -50,6 +50,7 @@ class Scored:
     candidate: Candidate
     losses: np.ndarray
     folds: list = field(default_factory=list)  # FitResult per fold (trained without that fold)
+    bound: tuple | None = None  # effect parameters at a bound, when known without the fold fits (stored results)
 
     @property
     def label(self) -> str:
@@ -60,6 +61,13 @@ class Scored:
     def total(self) -> float:
         """Total held-out loss over all windows."""
         return float(np.sum(self.losses))
+
+    @property
+    def at_bound(self) -> tuple:
+        """Effect parameters (``"effect.param(target)"``) that ended at a bound of their range in a fold fit."""
+        if self.bound is not None:
+            return tuple(self.bound)
+        return tuple(sorted({lab for f in self.folds for lab in f.at_bound if "(" in lab}))
 
     def fold_params(self) -> dict:
         """Mean effect parameters over the fold fits: ``(effect, target) -> tuple``."""
@@ -148,6 +156,8 @@ def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, sprea
     significant gain is below ``min_improvement`` but at least ``consistent_gain``.  ``reweigh(r)``: per-window
     factors of the losses when a two-effect model is tested against its part ``r`` (or None: unchanged)."""
     keys = m.candidate.keys
+    if m.at_bound:  # the data push the effect past its plausible range: it stands in for something else
+        return False, [{"against": "bounds", "at_bound": list(m.at_bound)}]
     if len(keys) == 1:
         refs = [base]
     else:

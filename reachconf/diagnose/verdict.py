@@ -39,7 +39,7 @@ def model_entry(m, base, clusters, decision) -> dict:
     parts = [[e.name, tg] for e, tg in m.candidate.parts]
     entry = {"label": m.label, "parts": parts, "held_out_loss": m.total, "prediction_gain": t["gain"],
              "z_vs_base": t["z"], "admissible": m.label in decision["admissible"],
-             "tests": decision["tests"].get(m.label, []),
+             "tests": decision["tests"].get(m.label, []), "at_bound": list(m.at_bound),
              "params_by_effect": {f"{e}({tg})": dict(zip(_effect_params(m, e, tg), map(float, params[(e, tg)])))
                                   for e, tg in parts}}  # fmt: skip
     if len(parts) == 1:

@@ -108,3 +108,32 @@ def test_slow_excitation_leaves_lag_and_dead_time_indistinguishable_and_says_whi
     T = rep.named[0]
     assert T["interval"]["T"][0] <= 0.06 <= T["interval"]["T"][1]
     assert abs(T["params"]["T"] - 0.06) < 0.006
+
+
+def test_an_effect_at_a_bound_of_its_range_is_not_named():
+    from types import SimpleNamespace
+
+    from reachconf.diagnose.effects import EFFECTS
+    from reachconf.diagnose.fit import Candidate
+    from reachconf.diagnose.select import Scored
+
+    clusters = np.arange(12)
+    rng = np.random.default_rng(0)
+    base = Scored(Candidate(()), np.full(12, 100.0))
+    gain = 50.0 + rng.normal(scale=2.0, size=12)
+    lag = (EFFECTS["actuator_lag"], "u")
+    scale = (EFFECTS["input_scale"], "a")
+    # a scale that removes 60 % of the loss in every case, but at its lower bound (k = 0.2) in a fold fit
+    folds = [SimpleNamespace(at_bound=("J_m",)), SimpleNamespace(at_bound=("input_scale.k(a)", "J_m"))]
+    at_bound = Scored(Candidate((scale,)), base.losses - gain - 10.0, folds=folds)
+    assert at_bound.at_bound == ("input_scale.k(a)",)  # base parameters at a bound do not count
+    inner = Scored(Candidate((lag,)), base.losses - gain, folds=[SimpleNamespace(at_bound=("J_m",))] * 2)
+    opts = DiagnoseOptions()
+    d = decide(base, [at_bound, inner], clusters, opts)
+    assert d["chosen"] is inner and d["admissible"] == [inner.label]
+    assert d["tests"][at_bound.label] == [{"against": "bounds", "at_bound": ["input_scale.k(a)"]}]
+    # without the bound it would have been named (lower loss, same significance)
+    free = Scored(Candidate((scale,)), at_bound.losses, folds=[SimpleNamespace(at_bound=())] * 2)
+    assert decide(base, [free, inner], clusters, opts)["chosen"] is free
+    # stored results carry the flags instead of the fold fits
+    assert Scored(Candidate((scale,)), at_bound.losses, bound=("input_scale.k(a)",)).at_bound == ("input_scale.k(a)",)
