@@ -17,7 +17,7 @@ from reachconf.reach_log import ReachLog
 from reachconf.sets.convert import as_zonotope
 from reachconf.sets.core import Interval, Zonotope
 from reachconf.sets.union import SetUnion
-from reachconf.tube_pieces import PieceSets, piece_layout
+from reachconf.tube_pieces import PieceSets, branch_hulls, piece_layout
 
 __all__ = ["ReachTube", "SetUnion", "Containment"]
 
@@ -158,16 +158,15 @@ class ReachTube:
         def make(ids):
             return piece(int(ids[0])) if ids.size == 1 else SetUnion([piece(int(p)) for p in ids])
 
-        tp = PieceSets(np.concatenate([[0], lay.tp_indptr + 1]), np.concatenate([[-1], lay.tp_indices]),
-                       lambda ids: run.X0 if ids[0] < 0 else make(ids))  # fmt: skip
-        ti = PieceSets(lay.ti_indptr, lay.ti_indices + P, make)
+        # (no copies of the index arrays: entry 0 of tp is X0, an empty group; ti ids are offset by P in make)
+        tp = PieceSets(np.concatenate([[0], lay.tp_indptr]), lay.tp_indices,
+                       lambda ids: run.X0 if ids.size == 0 else make(ids))  # fmt: skip
+        ti = PieceSets(lay.ti_indptr, lay.ti_indices, lambda ids: make(np.asarray(ids, dtype=np.int64) + P))
         meta = {"model": model.name, "options": {k: _plain(v) for k, v in run.options.__dict__.items()}}
         tube = cls(lay.times, tp, lay.intervals, ti, model.state_names, model=model, splits=run.splits,
                    seconds=run.seconds, meta=meta, log=run.log)  # fmt: skip
         lo, hi = piece_hulls(run.ti_c, np.ascontiguousarray(run.ti_G), run.ng_ti)
-        start = lay.ti_indptr[:-1]
-        tube.step_bounds = np.stack([np.minimum.reduceat(lo[lay.ti_indices], start, axis=0),
-                                 np.maximum.reduceat(hi[lay.ti_indices], start, axis=0)], axis=1)  # fmt: skip
+        tube.step_bounds = np.stack(branch_hulls(lay.ti_parts, lo, hi, lay.intervals.shape[0]), axis=1)
         return tube
 
     def summary(self) -> str:

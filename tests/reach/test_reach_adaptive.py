@@ -160,3 +160,53 @@ def test_lineages_stop_restarting_where_restarts_only_postpone_the_error(monkeyp
     monkeypatch.setattr(ra, "RESTART_FEEDBACK", 2.0)
     off = rc.reach(laub_loomis(), X0, 20.0, options=rc.ReachOptions(algorithm="adaptive", max_splits=12))
     assert off.splits >= 6 > tube.splits  # 7: all the per-lineage shares of 12 allow
+
+
+def test_piece_layout_matches_a_brute_force_enumeration_of_the_branches_steps():
+    """The adaptive tube's layout (built in place without sorting all pairs): every interval of the common
+    refinement and every step end lists exactly the pieces of the live branches that cover it, and the
+    interval hulls are those of these pieces."""
+    from types import SimpleNamespace
+
+    from reachconf.tube_pieces import branch_hulls, piece_layout
+
+    rng = np.random.default_rng(5)
+    T, branches, t0 = 2.0, [], []
+
+    def add(index, t_begin, t_end):
+        cuts = np.sort(rng.uniform(t_begin, t_end, size=rng.integers(1, 6)))
+        starts = np.concatenate([[t_begin], cuts])
+        lo = len(t0)
+        t0.extend(starts)
+        branches.append(SimpleNamespace(index=index, t_begin=t_begin, t_end=t_end, rec_lo=lo, rec_hi=len(t0),
+                                        sample_step=np.full(3, -1)))  # fmt: skip
+
+    add(0, 0.0, 0.7)  # split at 0.7 into 1 and 2; 2 split at 1.3 into 3 and 4
+    add(1, 0.7, T)
+    add(2, 0.7, 1.3)
+    add(3, 1.3, T)
+    add(4, 1.3, T)
+    t0 = np.array(t0)
+    lay = piece_layout(np.array([0.0, T]), True, t0, branches)
+    P = t0.size
+    mids = lay.intervals.mean(axis=1)
+    for j, m in enumerate(mids):
+        want = sorted(b.rec_lo + int(np.searchsorted(t0[b.rec_lo : b.rec_hi], m, side="right")) - 1
+                      for b in branches if b.t_begin < m < b.t_end)  # fmt: skip
+        assert sorted(lay.ti_indices[lay.ti_indptr[j] : lay.ti_indptr[j + 1]].tolist()) == want
+    for j, t in enumerate(lay.times[1:]):
+        want = []
+        for b in branches:
+            if not b.t_begin < t <= b.t_end + 1e-12:
+                continue
+            ends = np.append(t0[b.rec_lo + 1 : b.rec_hi], b.t_end)
+            k = int(np.searchsorted(ends, t - 1e-12))
+            want.append(b.rec_lo + k if abs(ends[k] - t) < 1e-12 else P + b.rec_lo + k)
+        assert sorted(lay.tp_indices[lay.tp_indptr[j] : lay.tp_indptr[j + 1]].tolist()) == sorted(want)
+    lo = rng.normal(size=(P, 2))
+    hi = lo + rng.uniform(0.1, 1.0, size=(P, 2))
+    blo, bhi = branch_hulls(lay.ti_parts, lo, hi, mids.size)
+    for j in range(mids.size):
+        ids = lay.ti_indices[lay.ti_indptr[j] : lay.ti_indptr[j + 1]]
+        np.testing.assert_array_equal(blo[j], lo[ids].min(axis=0))
+        np.testing.assert_array_equal(bhi[j], hi[ids].max(axis=0))
