@@ -90,13 +90,17 @@ def _route(th) -> str:
 def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
     """One paragraph: what explains the gap, with intervals; or which explanations the data cannot separate."""
     pre = "INTERRUPTED, partial result: " if interrupted else ""
+    bound = ""
+    if best_entry is not None and best_entry.get("at_bound"):  # the best fit was not named for its bound
+        bound = (f"; {best_entry['label']} predicts best, but {', '.join(best_entry['at_bound'])} ended at a bound of "
+                 "its range: the effect may be larger than the library allows, or stand in for something else")  # fmt: skip
     if record["status"] == "none":
         if best_entry is None:
             return pre + "no effect was fitted"
         return pre + (f"no effect in the library explains the gap (best: {best_entry['label']}, held-out prediction "
                       f"loss {-100 * best_entry['prediction_gain']:+.0f} %, z = {best_entry['z_vs_base']:.1f}; naming "
                       f"needs z >= {record['thresholds']['z_name']:g} and a loss reduction of at least "
-                      f"{100 * record['thresholds']['min_improvement']:.0f} %{_route(record['thresholds'])})")  # fmt: skip
+                      f"{100 * record['thresholds']['min_improvement']:.0f} %{_route(record['thresholds'])}{bound})")  # fmt: skip
     named = record["named"]
     tests = record.get("tests", [])
     gain = ", ".join(f"{100 * t['gain']:.0f} % below {t['against']} (z = {t['z']:.1f}"
@@ -106,7 +110,7 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
         text = " and ".join(_fmt_effect(e) for e in named) + f" explains the gap: held-out prediction loss {gain}"
         if shrink is not None:
             text += f"; the minimal W volume shrinks {shrink:.2f}x"
-        return pre + text
+        return pre + text + bound
     # indistinguishable: the effects shared by all explanations are named, the differing ones listed
     alts = record["alternatives"]
     shared = [e for e in named if all([e["effect"], e["target"]] in a["parts"] for a in alts)]
@@ -132,4 +136,4 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
         s = seps[0]
         text += (f"; {s['probe']['text']} would separate them (their predicted measurements differ by "
                  f"{s['separation']:.1f} noise std over {s['horizon']:g} s)")
-    return pre + text
+    return pre + text + bound

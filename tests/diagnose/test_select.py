@@ -137,3 +137,15 @@ def test_an_effect_at_a_bound_of_its_range_is_not_named():
     assert decide(base, [free, inner], clusters, opts)["chosen"] is free
     # stored results carry the flags instead of the fold fits
     assert Scored(Candidate((scale,)), at_bound.losses, bound=("input_scale.k(a)",)).at_bound == ("input_scale.k(a)",)
+
+
+def test_the_verdict_says_when_the_best_fit_was_not_named_for_its_bound():
+    from reachconf.diagnose.verdict import verdict_text
+
+    th = {"z_name": 3.0, "min_improvement": 0.3, "consistent_gain": 0.2, "max_spread": 0.0, "z_separate": 1.5}
+    best = {"label": "dead_time(u)", "prediction_gain": 0.8, "z_vs_base": 9.0, "at_bound": ["dead_time.T(u)"]}
+    text = verdict_text({"status": "none", "thresholds": th}, best, False)
+    assert text.startswith("no effect in the library explains the gap")
+    assert "dead_time.T(u) ended at a bound of its range" in text and "larger than the library allows" in text
+    free = dict(best, at_bound=[])
+    assert "bound" not in verdict_text({"status": "none", "thresholds": th}, free, False)
