@@ -17,7 +17,7 @@ from reachconf.reach_log import ReachLog
 from reachconf.sets.convert import as_zonotope
 from reachconf.sets.core import Interval, Zonotope
 from reachconf.sets.union import SetUnion
-from reachconf.tube_pieces import PieceSets, branch_hulls, piece_layout
+from reachconf.tube_pieces import PieceSets, piece_layout
 
 __all__ = ["ReachTube", "SetUnion", "Containment"]
 
@@ -143,6 +143,7 @@ class ReachTube:
         when first used, the bounds directly from the arrays.
         """
         from reachconf_kernels.adaptive import piece_hulls
+        from reachconf_kernels.tube_layout import csr_hulls
 
         lay = piece_layout(run.samples, run.scalar, run.rec[:, 0], run.branches)
         P = run.rec.shape[0]
@@ -166,7 +167,7 @@ class ReachTube:
         tube = cls(lay.times, tp, lay.intervals, ti, model.state_names, model=model, splits=run.splits,
                    seconds=run.seconds, meta=meta, log=run.log)  # fmt: skip
         lo, hi = piece_hulls(run.ti_c, np.ascontiguousarray(run.ti_G), run.ng_ti)
-        tube.step_bounds = np.stack(branch_hulls(lay.ti_parts, lo, hi, lay.intervals.shape[0]), axis=1)
+        tube.step_bounds = np.stack(csr_hulls(lay.ti_indptr, lay.ti_indices, lo, hi), axis=1)
         return tube
 
     def summary(self) -> str:

@@ -21,8 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from reachconf.errors import ReachError
+from reachconf_kernels import tube_layout as tl
 
-__all__ = ["PieceSets", "PieceLayout", "piece_layout", "branch_hulls"]
+__all__ = ["PieceSets", "PieceLayout", "piece_layout"]
 
 
 class PieceSets(Sequence):
@@ -81,7 +82,6 @@ class PieceLayout:
     ``ti_*``: CSR over the time intervals (piece ids of time-interval sets);
     ``tp_*``: CSR over the sample times 1.. (ids ``p`` of time-point pieces,
     ``P + p`` for a time-interval piece standing in at that time).
-    ``ti_parts()``: yields ``(rows, ids)`` per branch, the pairs of ``ti_*`` (for :func:`branch_hulls`).
     """
 
     times: np.ndarray
@@ -90,37 +90,25 @@ class PieceLayout:
     ti_indices: np.ndarray
     tp_indptr: np.ndarray
     tp_indices: np.ndarray
-    ti_parts: object
+
+
+def _index_dtype(P):
+    """32-bit piece ids where they fit (ids go up to ``2 P``): the index arrays can hold 10^8 entries."""
+    return np.int32 if 2 * P + 1 < np.iinfo(np.int32).max else np.int64
 
 
 def _csr(parts, count, P):
-    """CSR of the pieces per row from ``parts()`` (yields ``(rows, ids)`` per branch; a branch's rows distinct).
-
-    Built in place, branch after branch, without sorting all (row, piece) pairs: a run with hundreds of
-    pieces alive over 10^5 intervals has 10^7-10^8 of them (Van der Pol mu = 2: 77 million).  Within a row
-    the pieces keep the order of ``parts`` (increasing ids for branches given in the order of their pieces).
-    """
+    """CSR of the pieces per row from ``(rows, ids)`` per branch (a branch's rows distinct; few pairs)."""
     counts = np.zeros(count + 1, dtype=np.int64)
-    for rows, _ in parts():
+    for rows, _ in parts:
         counts[rows + 1] += 1
     indptr = np.cumsum(counts)
-    dtype = np.int32 if 2 * P + 1 < np.iinfo(np.int32).max else np.int64
-    indices = np.empty(int(indptr[-1]), dtype=dtype)
+    indices = np.empty(int(indptr[-1]), dtype=_index_dtype(P))
     fill = indptr[:-1].copy()
-    for rows, ids in parts():
+    for rows, ids in parts:
         indices[fill[rows]] = ids
         fill[rows] += 1
     return indptr, indices
-
-
-def branch_hulls(parts, lo, hi, count):
-    """Interval hull per row of the pieces ``parts()`` (as for :func:`_csr`) from every piece's hull ``lo, hi``."""
-    out_lo = np.full((count, lo.shape[1]), np.inf)
-    out_hi = np.full((count, hi.shape[1]), -np.inf)
-    for rows, ids in parts():
-        out_lo[rows] = np.minimum(out_lo[rows], lo[ids])
-        out_hi[rows] = np.maximum(out_hi[rows], hi[ids])
-    return out_lo, out_hi
 
 
 def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
@@ -147,38 +135,30 @@ def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
     grid = raw[np.concatenate([[True], np.diff(raw) > tol])]
     mids = 0.5 * (grid[:-1] + grid[1:])
     live = sorted(live, key=lambda b: b.rec_lo)  # rows list their pieces in increasing id
-    span_rows = [(int(np.searchsorted(mids, b.t_begin, side="right")), int(np.searchsorted(mids, b.t_end, side="left")))
-                 for b in live]  # fmt: skip
-
-    def ti_parts():  # recomputed on demand: the pairs can number 10^8
-        for b, (a, e) in zip(live, span_rows):
-            sel = np.arange(a, e)
-            idx = np.clip(np.searchsorted(starts[b.index], mids[a:e], side="right") - 1, 0, b.rec_hi - b.rec_lo - 1)
-            yield sel, b.rec_lo + idx
-
-    ti_indptr, ti_indices = _csr(ti_parts, mids.size, P)
-    if scalar:
+    rec_lo = np.array([b.rec_lo for b in live], dtype=np.int64)
+    rec_hi = np.array([b.rec_hi for b in live], dtype=np.int64)
+    t_begin = np.array([b.t_begin for b in live], dtype=float)
+    t_end = np.array([b.t_end for b in live], dtype=float)
+    # time intervals: a branch covers the mids strictly inside (t_begin, t_end)
+    row_lo, row_hi = np.searchsorted(mids, t_begin, side="right"), np.searchsorted(mids, t_end, side="left")
+    ti_indptr = tl.range_indptr(mids.size, row_lo, row_hi)
+    ti_indices = np.empty(int(ti_indptr[-1]), dtype=_index_dtype(P))
+    tl.fill_interval_pieces(ti_indptr, ti_indices, mids, row_lo, row_hi, rec_lo, rec_hi, t0)
+    if scalar:  # a time-point set at every step end of any branch: the times in (t_begin, t_end] (rows from 1)
         times = grid
-
-        def tp_parts():
-            for b in live:
-                sel = np.nonzero((times > b.t_begin + tol) & (times <= b.t_end + tol))[0]
-                e = ends[b.index]
-                j = np.clip(np.searchsorted(e, times[sel] - tol), 0, e.size - 1)
-                at_end = np.abs(e[j] - times[sel]) <= tol
-                # step covering the time: the one ending at or after it
-                yield sel - 1, np.where(at_end, b.rec_lo + j, P + b.rec_lo + j)
-    else:
+        row_lo = np.searchsorted(times, t_begin + tol, side="right") - 1
+        row_hi = np.searchsorted(times, t_end + tol, side="right") - 1
+        tp_indptr = tl.range_indptr(times.size - 1, row_lo, row_hi)
+        tp_indices = np.empty(int(tp_indptr[-1]), dtype=_index_dtype(P))
+        tl.fill_point_pieces(tp_indptr, tp_indices, times, row_lo, row_hi, rec_lo, rec_hi, t_end, t0, tol, P)
+    else:  # at the sample times each branch reached (few: one per sample and live branch)
         times = samples
-
-        def tp_parts():
-            for b in live:
-                js = np.nonzero(b.sample_step >= 0)[0]
-                js = js[js >= 1]
-                yield js - 1, b.sample_step[js]
-
-    tp_indptr, tp_indices = _csr(tp_parts, times.size - 1, P)
+        parts = []
+        for b in live:
+            js = np.nonzero(b.sample_step >= 0)[0]
+            js = js[js >= 1]
+            parts.append((js - 1, b.sample_step[js]))
+        tp_indptr, tp_indices = _csr(parts, times.size - 1, P)
     if np.any(np.diff(ti_indptr) == 0) or np.any(np.diff(tp_indptr) == 0):
         raise ReachError("internal error: a time of the adaptive tube has no reachable set")
-    return PieceLayout(times, np.column_stack([grid[:-1], grid[1:]]), ti_indptr, ti_indices, tp_indptr, tp_indices,
-                       ti_parts)
+    return PieceLayout(times, np.column_stack([grid[:-1], grid[1:]]), ti_indptr, ti_indices, tp_indptr, tp_indices)

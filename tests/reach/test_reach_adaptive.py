@@ -168,7 +168,8 @@ def test_piece_layout_matches_a_brute_force_enumeration_of_the_branches_steps():
     interval hulls are those of these pieces."""
     from types import SimpleNamespace
 
-    from reachconf.tube_pieces import branch_hulls, piece_layout
+    from reachconf.tube_pieces import piece_layout
+    from reachconf_kernels.tube_layout import csr_hulls
 
     rng = np.random.default_rng(5)
     T, branches, t0 = 2.0, [], []
@@ -205,7 +206,7 @@ def test_piece_layout_matches_a_brute_force_enumeration_of_the_branches_steps():
         assert sorted(lay.tp_indices[lay.tp_indptr[j] : lay.tp_indptr[j + 1]].tolist()) == sorted(want)
     lo = rng.normal(size=(P, 2))
     hi = lo + rng.uniform(0.1, 1.0, size=(P, 2))
-    blo, bhi = branch_hulls(lay.ti_parts, lo, hi, mids.size)
+    blo, bhi = csr_hulls(lay.ti_indptr, lay.ti_indices, lo, hi)
     for j in range(mids.size):
         ids = lay.ti_indices[lay.ti_indptr[j] : lay.ti_indptr[j + 1]]
         np.testing.assert_array_equal(blo[j], lo[ids].min(axis=0))

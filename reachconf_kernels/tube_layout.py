@@ -1,0 +1,85 @@
+"""Which stored pieces make up each set of an adaptive tube (:mod:`reachconf.tube_pieces`), as CSR arrays.
+
+An adaptive run's branches each have their own steps; the tube's time
+intervals are the common refinement of all of them, and the set over one
+interval is the union of, per live branch, the piece (step) covering it.  With
+hundreds of live branches over 10^5 intervals there are 10^7-10^8 (interval,
+piece) pairs (Van der Pol mu = 2: 77 million), so they are counted and
+filled here in place, branch after branch, walking each branch's steps along
+the sorted times (no sort, no per-pair temporaries).  Within a row the
+pieces keep the order of the branches given (the caller sorts them by their
+first piece, so ids increase).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["range_indptr", "fill_interval_pieces", "fill_point_pieces", "csr_hulls"]
+
+
+@njit(cache=True)
+def range_indptr(count, row_lo, row_hi):
+    """CSR row pointer (count + 1,) when branch ``b`` covers the rows ``row_lo[b] .. row_hi[b] - 1``."""
+    diff = np.zeros(count + 1, dtype=np.int64)
+    for b in range(row_lo.size):
+        if row_hi[b] > row_lo[b]:
+            diff[row_lo[b]] += 1
+            diff[row_hi[b]] -= 1
+    indptr = np.zeros(count + 1, dtype=np.int64)
+    run = 0
+    for j in range(count):
+        run += diff[j]
+        indptr[j + 1] = indptr[j] + run
+    return indptr
+
+
+@njit(cache=True)
+def fill_interval_pieces(indptr, indices, mids, row_lo, row_hi, rec_lo, rec_hi, t0):
+    """Fill ``indices``: for each row ``j`` of branch ``b``, its step covering ``mids[j]`` — the last of the
+    branch's pieces ``rec_lo[b] .. rec_hi[b] - 1`` (start times ``t0``) starting at or before it."""
+    fill = indptr[:-1].copy()
+    for b in range(row_lo.size):
+        p = rec_lo[b]
+        for j in range(row_lo[b], row_hi[b]):
+            while p + 1 < rec_hi[b] and t0[p + 1] <= mids[j]:
+                p += 1
+            indices[fill[j]] = p
+            fill[j] += 1
+
+
+@njit(cache=True)
+def fill_point_pieces(indptr, indices, times, row_lo, row_hi, rec_lo, rec_hi, t_end, t0, tol, P):
+    """Fill ``indices``: for row ``j`` (the time ``times[j + 1]``) of branch ``b``, the step ending at that time
+    (its id) or, when none does, the step covering it (id ``P + step``: its time-interval set stands in)."""
+    fill = indptr[:-1].copy()
+    for b in range(row_lo.size):
+        lo = rec_lo[b]
+        n = rec_hi[b] - lo
+        k = 0
+        for j in range(row_lo[b], row_hi[b]):
+            T = times[j + 1]
+            while k < n - 1 and t0[lo + k + 1] < T - tol:  # end of step k: t0 of the next, t_end for the last
+                k += 1
+            e = t0[lo + k + 1] if k < n - 1 else t_end[b]
+            indices[fill[j]] = lo + k if abs(e - T) <= tol else P + lo + k
+            fill[j] += 1
+
+
+@njit(cache=True)
+def csr_hulls(indptr, indices, lo, hi):
+    """Interval hull per row of the pieces it lists, from every piece's hull ``lo, hi`` (P, n)."""
+    count = indptr.size - 1
+    n = lo.shape[1]
+    out_lo = np.full((count, n), np.inf)
+    out_hi = np.full((count, n), -np.inf)
+    for j in range(count):
+        for q in range(indptr[j], indptr[j + 1]):
+            p = indices[q]
+            for i in range(n):
+                if lo[p, i] < out_lo[j, i]:
+                    out_lo[j, i] = lo[p, i]
+                if hi[p, i] > out_hi[j, i]:
+                    out_hi[j, i] = hi[p, i]
+    return out_lo, out_hi
