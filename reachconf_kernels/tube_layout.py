@@ -21,7 +21,7 @@ __all__ = ["range_indptr", "fill_interval_pieces", "fill_point_pieces", "csr_hul
 
 @njit(cache=True)
 def range_indptr(count, row_lo, row_hi):
-    """CSR row pointer (count + 1,) when branch ``b`` covers the rows ``row_lo[b] .. row_hi[b] - 1``."""
+    """CSR row pointer (count + 1,) when branch ``b`` covers the rows from ``row_lo[b]`` up to ``row_hi[b]`` (excl.)."""
     diff = np.zeros(count + 1, dtype=np.int64)
     for b in range(row_lo.size):
         if row_hi[b] > row_lo[b]:
@@ -37,8 +37,11 @@ def range_indptr(count, row_lo, row_hi):
 
 @njit(cache=True)
 def fill_interval_pieces(indptr, indices, mids, row_lo, row_hi, rec_lo, rec_hi, t0):
-    """Fill ``indices``: for each row ``j`` of branch ``b``, its step covering ``mids[j]`` — the last of the
-    branch's pieces ``rec_lo[b] .. rec_hi[b] - 1`` (start times ``t0``) starting at or before it."""
+    """Fill ``indices``: for each row ``j`` of branch ``b``, its step covering ``mids[j]``.
+
+    That is the last of the branch's pieces (ids from ``rec_lo[b]`` up to ``rec_hi[b]``, excl.; start times
+    ``t0``) starting at or before it.
+    """
     fill = indptr[:-1].copy()
     for b in range(row_lo.size):
         p = rec_lo[b]
@@ -51,8 +54,11 @@ def fill_interval_pieces(indptr, indices, mids, row_lo, row_hi, rec_lo, rec_hi, 
 
 @njit(cache=True)
 def fill_point_pieces(indptr, indices, times, row_lo, row_hi, rec_lo, rec_hi, t_end, t0, tol, P):
-    """Fill ``indices``: for row ``j`` (the time ``times[j + 1]``) of branch ``b``, the step ending at that time
-    (its id) or, when none does, the step covering it (id ``P + step``: its time-interval set stands in)."""
+    """Fill ``indices``: for row ``j`` (the time ``times[j + 1]``) of branch ``b``, the step ending then.
+
+    Its id, or, when no step of the branch ends then, the step covering the time (id ``P + step``: its
+    time-interval set stands in).
+    """
     fill = indptr[:-1].copy()
     for b in range(row_lo.size):
         lo = rec_lo[b]
