@@ -189,20 +189,31 @@ def particular_constant(T, E, dt, u):
 
 
 @njit(cache=True)
-def particular_varying(T, E, dt, c, G):
+def particular_varying(T, E, dt, c, G, keep_terms=-1):
     """Particular solution for a time-varying input ``u(t) in Z(c, G)``.
 
     ``P^U = (+)_i T_i Z  (+)  [-E dt, E dt] Z`` term by term (never factored).
+    ``keep_terms >= 0``: the generators of the terms ``i >= keep_terms`` are
+    boxed at once (their per-axis absolute sums join the box radius) instead
+    of being returned; ``-1`` keeps every term's generators.
     Returns ``(centre, generators, box radius)``.
     """
     n = T.shape[1]
     m = G.shape[1]
     terms = T.shape[0]
+    kept = terms if keep_terms < 0 else min(terms, keep_terms)
     cc = np.zeros(n)
-    GG = np.empty((n, terms * m))
+    GG = np.empty((n, kept * m))
+    boxed = np.zeros(n)
     for i in range(terms):
         cc += T[i] @ c
-        GG[:, i * m : (i + 1) * m] = T[i] @ G
+        TG = T[i] @ G
+        if i < kept:
+            GG[:, i * m : (i + 1) * m] = TG
+        else:
+            for j in range(m):
+                for r in range(n):
+                    boxed[r] += abs(TG[r, j])
     absz = np.abs(c).copy()
     for j in range(m):
         for i in range(n):
@@ -211,5 +222,6 @@ def particular_varying(T, E, dt, c, G):
     s = np.zeros(n)
     for i in range(terms):
         s += np.abs(T[i]) @ absz
-    rad = rad * (1.0 + ROUND) + s * 4e-16 * (n + 2)
+    # the boxed sums carry the summation's rounding (m + n terms) on top of the products' (the s term)
+    rad = rad * (1.0 + ROUND) + boxed * (1.0 + 4e-16 * (m + n + 2)) + s * 4e-16 * (n + 2)
     return cc, GG, rad

@@ -400,7 +400,10 @@ def nonlinear_step(
         ec, eG = _add_box(np.zeros(n), np.zeros((n, 0)), true_err)
     else:
         ec, eG = _add_box(err_c + stat_c, _hcat(err_G, stat_G), cubic)
-    Pc, PG, Prad = particular_varying(T, E, dt, ec, eG)
+    # adaptive (red_tol > 0): the generators of the error's particular solution beyond the first Taylor term are boxed
+    # at once (with tensor order 3 the error set has up to intermediate_order * n generators, so each term adds as many; the
+    # higher terms' images are O(dt^2) and the error-bounded reduction below would box them anyway, after sorting them)
+    Pc, PG, Prad = particular_varying(T, E, dt, ec, eG, 1 if red_tol > 0.0 else -1)
     Pc, PG = _add_box(Pc, PG, Prad)
     ctp = ctp_lin + px + Pc
     Gtp = _hcat(Gtp_lin, PG)
