@@ -312,7 +312,7 @@ def cmd_diagnose(args, run):
 
     spec = _load(args)
     suite = _select_cases(spec, args)
-    kwargs = diagnose_settings(spec)
+    kwargs = diagnose_settings(spec, cases=getattr(args, "case", None))
     report = diagnose(spec.model, suite, V=spec.V, **kwargs)
     if args.json:
         report.to_json(args.json)

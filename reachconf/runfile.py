@@ -16,7 +16,7 @@ Example::
     method = "auto"
     [synthesis]                        # SynthesisOptions fields
     alpha_iterations = 10
-    [diagnose]                         # reachconf diagnose: effects, holdout, fit_params, seed + DiagnoseOptions
+    [diagnose]                         # reachconf diagnose: effects, holdout, fit_params, seed, reference + DiagnoseOptions
     effects = "all"                    # or a list of names, or of [name, target] pairs
     holdout = 0.3
     fit_params = ["J_m", "c_f"]        # or true / false
@@ -186,8 +186,12 @@ def load_run(path) -> RunSpec:
     return RunSpec(path, model, suite_path, W, V, X0, reach_opts, method, trace_opts, synth_opts, workers, raw)
 
 
-def diagnose_settings(spec: RunSpec) -> dict:
-    """Keyword arguments of :func:`reachconf.diagnose` from the run file's ``[diagnose]`` table."""
+def diagnose_settings(spec: RunSpec, cases=None) -> dict:
+    """Keyword arguments of :func:`reachconf.diagnose` from the run file's ``[diagnose]`` table.
+
+    ``reference = "folder"`` (relative to the run file) loads the reference suite, restricted to the case
+    names ``cases`` when given (the command line's ``--case`` selection).
+    """
     where = f"{spec.path}: [diagnose]"
     table = _table(spec.raw, "diagnose", str(spec.path))
     kwargs = {}
@@ -220,5 +224,17 @@ def diagnose_settings(spec: RunSpec) -> dict:
         if unknown:
             raise DataError(f"{where}: fit_params: model has no parameters {unknown}")
         kwargs["fit_params"] = fp
+    if "reference" in table:  # the same cases recorded without the change (rc.diagnose(..., reference=))
+        ref = table.pop("reference")
+        if not isinstance(ref, str):
+            raise DataError(f"{where}: reference must be the path of a test-suite folder, got {ref!r}")
+        path = (spec.path.parent / ref).resolve()
+        suite = load_suite(path, model=spec.model)
+        if cases:
+            missing = sorted(set(cases) - {c.name for c in suite})
+            if missing:
+                raise DataError(f"{path}: no test case {missing} in the reference suite")
+            suite = suite.select(names=cases)
+        kwargs["reference"] = suite
     kwargs["options"] = _options(DiagnoseOptions, table, where)
     return kwargs

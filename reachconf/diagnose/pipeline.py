@@ -31,8 +31,6 @@
 from __future__ import annotations
 
 import time
-from dataclasses import replace
-from itertools import combinations
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -41,8 +39,6 @@ from reachconf.conformance.trace import trace_disturbances
 from reachconf.diagnose.consistency import group_sizes, model_spread
 from reachconf.diagnose.effects import EFFECTS, Effect
 from reachconf.diagnose.fit import (
-    Candidate,
-    fit_candidate,
     noise_level,
     prepare,
     window_counts,
@@ -60,15 +56,15 @@ from reachconf.diagnose.howfar import (
 from reachconf.diagnose.locate import locate_gap
 from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.diagnose.probes import band_shares, separating_probe
+from reachconf.diagnose.reference import change_test, prepare_reference
 from reachconf.diagnose.report import GapReport
-from reachconf.diagnose.scales import case_layout, case_weights, residual_scale, reweigh_factors
+from reachconf.diagnose.scales import case_layout, reweigh_factors
+from reachconf.diagnose.scoring import score_models
 from reachconf.diagnose.select import (
-    cross_fit,
     decide,
     fold_assignment,
     fold_start,
     full_fit,
-    paired_test,
     window_clusters,
 )
 from reachconf.diagnose.separable import mimic_loss
@@ -127,105 +123,9 @@ def _fit_names(model, fit_params):
     return names
 
 
-def _start(fits, base_params=None):
-    """Per-fold starting values from earlier fold fits (effect parameters; base parameters of the first)."""
-    out = []
-    for parts in zip(*fits):
-        st = dict(base_params or parts[0].base_params)
-        for f in parts:
-            st.update(f.effect_params)
-        out.append(st)
-    return out
-
-
-def _which(model, prepared, candidates, folds, clusters, sigma, fit_names, options, cache, bar, state):
-    """Base, screening, cross-fitted singles and pairs, into ``state`` (kept when interrupted):
-    ``base_full``, ``base`` (scored), ``models`` (scored singles and pairs), ``screen`` (screening fits),
-    ``scale`` (the loss scale per channel: ``sigma`` or, with ``loss_scale="residual"``, the base's misfit).
-    With ``loss_scale="case"`` the cases of ``prepared`` are replaced in place by copies carrying their weights."""
-    base_full = fit_candidate(model, Candidate(()), prepared, sigma, fit_names, options, cache)
-    if options.loss_scale == "residual":
-        sigma = residual_scale(base_full, prepared, sigma, options)
-        base_full = fit_candidate(model, Candidate(()), prepared, sigma, fit_names, options, cache,
-                                  start=dict(base_full.base_params))  # fmt: skip
-    elif options.loss_scale == "case":
-        w = case_weights(base_full, prepared, sigma, options)
-        prepared[:] = [replace(d, weight=float(wi)) for d, wi in zip(prepared, w)]
-        base_full = fit_candidate(model, Candidate(()), prepared, sigma, fit_names, options, cache,
-                                  start=dict(base_full.base_params))  # fmt: skip
-    state["scale"] = sigma
-    state["base_full"] = base_full
-    state["base"] = cross_fit(model, Candidate(()), prepared, folds, sigma, fit_names, options, cache,
-                              start=dict(base_full.base_params))  # fmt: skip
-    bar.update(1)
-    screen = state["screen"]
-    for e, tgt in candidates:
-        bar.set_postfix_str(f"screen {e.name}({tgt})")
-        screen.append(fit_candidate(base_full.model, Candidate(((e, tgt),)), prepared, sigma, (), options, cache,
-                                    max_nfev=20))  # fmt: skip
-    screen.sort(key=lambda f: f.train_cost)
-    bar.update(1)
-    models = state["models"]
-    for f in screen[: options.screen]:
-        bar.set_postfix_str(f.candidate.label)
-        st = {**base_full.base_params, **f.effect_params}
-        models.append(cross_fit(model, f.candidate, prepared, folds, sigma, fit_names, options, cache, start=st))
-        bar.update(1)
-    # pairs of the best singles that predict the held-out cases better than the base at all (z >= 1)
-    useful = [m for m in models if paired_test(m.losses, state["base"].losses, clusters)["z"] >= 1.0]
-    ranked = sorted(useful, key=lambda m: m.total)
-    top = ranked[: options.pair_top]
-    for a, b in combinations(top, 2):
-        if a.candidate.keys & b.candidate.keys:
-            continue
-        better = a if a.total <= b.total else b
-        st = _start([a.folds, b.folds])
-        for s, fb in zip(st, better.folds):
-            s.update(fb.base_params)
-        cand = Candidate(a.candidate.parts + b.candidate.parts)
-        bar.set_postfix_str(cand.label)
-        models.append(cross_fit(model, cand, prepared, folds, sigma, fit_names, options, cache, start=st))
-        bar.update(1)
-    # a second effect can be masked by a large first one (screened alone, it imitates the first): the effects
-    # screened again next to the best single — and next to a single the best does not beat (z < z_separate: the
-    # data may hold either, e.g. a lag and a dead time) —, the best ``pair_next`` of the new pairs scored as well
-    if ranked and options.pair_next > 0:
-        firsts = [ranked[0]] + [m for m in ranked[1:] if len(m.candidate.keys) == 1
-                                and paired_test(ranked[0].losses, m.losses, clusters)["z"] < options.z_separate][:1]
-        for first in firsts:
-            _next_to(first, model, prepared, candidates, folds, sigma, fit_names, options, cache, bar, base_full,
-                     models)  # fmt: skip
-
-
-def _next_to(first, model, prepared, candidates, folds, sigma, fit_names, options, cache, bar, base_full, models):
-    """Screen every candidate next to the single effect ``first``; cross-fit the best ``pair_next`` pairs and
-    their second effect alone (into ``models``)."""
-    have = {m.candidate.keys for m in models}
-    fs = fold_start(first)
-    st0 = {**base_full.base_params, **{k: v for k, v in fs.items() if isinstance(k, tuple)}}
-    nxt = []
-    for e, tgt in candidates:
-        cand = Candidate(first.candidate.parts + ((e, tgt),))
-        new_code = cand.structural and cand.structural not in cache
-        if (e.name, tgt) in first.candidate.keys or cand.keys in have or new_code:
-            continue  # (no new model code is generated for this screen)
-        bar.set_postfix_str(f"next to {first.label}: {e.name}({tgt})")
-        nxt.append(fit_candidate(base_full.model, cand, prepared, sigma, (), options, cache, start=st0, max_nfev=20))
-    nxt.sort(key=lambda f: f.train_cost)
-    for f in nxt[: options.pair_next]:
-        st = {**fs, **f.effect_params}
-        bar.set_postfix_str(f.candidate.label)
-        models.append(cross_fit(model, f.candidate, prepared, folds, sigma, fit_names, options, cache, start=st))
-        single = Candidate(f.candidate.parts[-1:])  # the pair must beat this one too (select.decide)
-        if single.keys not in have:
-            (key1,) = single.keys
-            st1 = {**base_full.base_params, key1: f.effect_params[key1]}
-            models.append(cross_fit(model, single, prepared, folds, sigma, fit_names, options, cache, start=st1))
-            have.add(single.keys)
-
-
 def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True, seed: int = 0, V=None,
-             options: DiagnoseOptions | None = None, progress: bool = True, reach: bool = False) -> GapReport:  # fmt: skip
+             options: DiagnoseOptions | None = None, progress: bool = True, reach: bool = False,
+             reference=None) -> GapReport:  # fmt: skip
     """Diagnose the sim-to-real gap of ``model`` on ``suite`` (see the module docstring).
 
     Parameters
@@ -251,6 +151,13 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         Also synthesise the reachset-conformant W (steps 1-3 of section 4.3.2,
         the α-search of eq. 68) of the held-out segments for the base and the
         named model (``before_after["W_reachset"]``); slower.
+    reference : TestSuite or iterable of TestCase, optional
+        The same cases (same order and sample times) recorded without the
+        change: the effect named is then the one that explains how the suite's
+        misfit exceeds the reference's (:mod:`reachconf.diagnose.reference`;
+        ``decision["reference"]`` holds the excess and its z).  Every scored
+        model is also fitted on the reference, which doubles the time of the
+        *which* step.
 
     Returns
     -------
@@ -273,6 +180,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         raise OptionsError("effects: no candidate effect applies to this model")
 
     prepared = [prepare(model, c, options) for c in cases]
+    ref_prepared = prepare_reference(model, reference, prepared, options) if reference is not None else None
     sigma = noise_level(np.vstack([d.Y for d in prepared]))
     if V is None:
         V = Interval(-3 * sigma, 3 * sigma)
@@ -292,12 +200,15 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     interrupted = False
     state = {"screen": [], "models": []}
     try:
-        _which(model, prepared, candidates, folds, clusters, sigma, fit_names, options, cache, bar, state)
+        score_models(model, prepared, candidates, folds, clusters, sigma, fit_names, options, cache, bar, state,
+                     ref=ref_prepared)  # fmt: skip
     except KeyboardInterrupt:  # pragma: no cover - interactive: decide on what was scored so far
         if "base" not in state:
             raise
         interrupted = True
     base_full, base_sc, models, screen = state["base_full"], state["base"], state["models"], state["screen"]
+    # the suite's own held-out loss of the base (with a reference, base_sc holds the excess over it)
+    base_total = state["base_suite"].total if ref_prepared is not None else base_sc.total
     scale = state["scale"]  # the loss scale of every fit (sigma: the sensor noise, for V and the probes)
     timings["which"] = time.process_time() - c_start - sum(timings.values())
     fulls, mimics = {}, {}
@@ -325,7 +236,14 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     def reweigh(single):  # a pair against its part: the case weights from that part's misfit (select.decide)
         return reweigh_factors(single.losses, layout) if layout is not None else None
 
-    decision = decide(base_sc, models, clusters, options, mimic=mimic, spread=spread, reweigh=reweigh)
+    # with a reference run the excess over it decides (reference.py): is there a change at all?
+    change = change_test(state["base_suite"], state["base_ref"], clusters) if ref_prepared is not None else None
+    changed = change is None or change["z"] >= options.z_name
+    decision = decide(base_sc, models if changed else [], clusters, options, mimic=mimic,
+                      spread=spread if change is None else None, reweigh=reweigh if change is None else None,
+                      relevance_of=base_sc.total if change is not None else None)  # fmt: skip
+    if not changed:
+        decision["best"] = min(models, key=lambda m: m.total) if models else None
     decision["consistency"] = {label: {"spread": v["spread"], "sizes": {f"{e}({t})": x for (e, t), x in v["sizes"].items()}}
                                for label, v in spreads.items()}  # fmt: skip
     for label, res in mimics.items():
@@ -425,10 +343,12 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
                                    "held_out_loss": None, "prediction_gain": None, "z_vs_base": None,
                                    "admissible": False, "screen_cost": f.train_cost})  # fmt: skip
     record = decision_record(decision, named, alternatives, options)
+    if change is not None:
+        record["reference"] = change
     best_entry = ranked_entries[0] if ranked_entries else None
     verdict = verdict_text(record, best_entry, interrupted, shrink if chosen is not None else None)
     base_info = {"params": {k2: float(v) for k2, v in base_full.base_params.items()},
-                 "nominal": {k2: float(model.params[k2]) for k2 in fit_names}, "held_out_loss": base_sc.total,
+                 "nominal": {k2: float(model.params[k2]) for k2 in fit_names}, "held_out_loss": base_total,
                  "box": {ch: [float(a), float(b)] for ch, a, b in zip(channels, base_box[0], base_box[1])},
                  "V": [[float(a), float(b)] for a, b in zip(V.lo, V.hi)], "noise_sigma": sigma.tolist(),
                  "loss_scale": {"method": options.loss_scale, "per_output": np.asarray(scale).tolist(),

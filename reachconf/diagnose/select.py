@@ -149,12 +149,14 @@ def cross_fit(base_model, cand: Candidate, data, folds, sigma, fit_names, option
     return Scored(cand, losses, fits)
 
 
-def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, spread=None, reweigh=None) -> tuple:
+def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, spread=None, reweigh=None,
+                relevance_of=None) -> tuple:  # fmt: skip
     """(admissible, tests): a one-effect model against the base, a two-effect model against each of its parts.
 
     ``spread(m)``: the relative spread of ``m``'s effects across groups (or None), asked only when a
     significant gain is below ``min_improvement`` but at least ``consistent_gain``.  ``reweigh(r)``: per-window
-    factors of the losses when a two-effect model is tested against its part ``r`` (or None: unchanged)."""
+    factors of the losses when a two-effect model is tested against its part ``r`` (or None: unchanged).
+    ``relevance_of``: the loss the relevance shares are taken of (None: the loss of the model tested against)."""
     keys = m.candidate.keys
     if m.at_bound:  # the data push the effect past its plausible range: it stands in for something else
         return False, [{"against": "bounds", "at_bound": list(m.at_bound)}]
@@ -170,6 +172,8 @@ def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, sprea
         f = reweigh(r) if reweigh is not None and len(keys) > 1 else None
         t = paired_test(m.losses, r.losses, clusters) if f is None else paired_test(m.losses * f, r.losses * f, clusters)
         t["against"] = r.label
+        if relevance_of is not None:  # the share of a fixed loss (the base's excess over a reference run)
+            t["gain"] = float(t["gain"] * np.sum(r.losses if f is None else r.losses * f) / relevance_of)
         tests.append(t)
         relevant = t["gain"] >= options.min_improvement
         if not relevant and ok and t["z"] >= options.z_name and t["gain"] >= options.consistent_gain:
@@ -180,7 +184,8 @@ def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, sprea
     return bool(ok), tests
 
 
-def decide(base: Scored, models: list, clusters, options, mimic=None, spread=None, reweigh=None) -> dict:
+def decide(base: Scored, models: list, clusters, options, mimic=None, spread=None, reweigh=None,
+           relevance_of=None) -> dict:  # fmt: skip
     """The naming rule (module docstring) on scored models.
 
     Parameters
@@ -206,6 +211,12 @@ def decide(base: Scored, models: list, clusters, options, mimic=None, spread=Non
         ``single`` (``loss_scale = "case"``: the case weights recomputed from
         that part's own held-out misfit, :func:`reachconf.diagnose.scales.reweigh_factors`);
         None: the losses as scored.
+    relevance_of : float, optional
+        The loss of which every relevance share is taken (``min_improvement``,
+        ``consistent_gain``); None: the loss of the model tested against.  With a
+        reference run (:mod:`reachconf.diagnose.reference`) it is the base
+        model's excess, so that a second effect must explain a share of the
+        change itself, not of what the first effect left of it (near zero).
 
     Returns
     -------
@@ -221,7 +232,7 @@ def decide(base: Scored, models: list, clusters, options, mimic=None, spread=Non
     singles = {m.candidate.keys: m for m in models if len(m.candidate.keys) == 1}
     tests, admissible = {}, []
     for m in models:
-        ok, t = _admissible(m, base, singles, clusters, options, spread, reweigh)
+        ok, t = _admissible(m, base, singles, clusters, options, spread, reweigh, relevance_of)
         tests[m.label] = t
         if ok:
             admissible.append(m)

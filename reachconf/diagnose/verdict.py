@@ -90,6 +90,13 @@ def _route(th) -> str:
 def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
     """One paragraph: what explains the gap, with intervals; or which explanations the data cannot separate."""
     pre = "INTERRUPTED, partial result: " if interrupted else ""
+    ref = record.get("reference")
+    if ref is not None:
+        if ref["z"] < record["thresholds"]["z_name"]:
+            return pre + (f"no change against the reference run: the base model's held-out loss differs from it by "
+                          f"{100 * ref['share']:+.0f} % (z = {ref['z']:.1f} < {record['thresholds']['z_name']:g})")
+        pre += (f"against the reference run (the change adds {100 * ref['share']:.0f} % of the base model's held-out "
+                f"loss, z = {ref['z']:.1f}; the shares below are of that excess): ")  # fmt: skip
     bound = ""
     if best_entry is not None and best_entry.get("at_bound"):  # the best fit was not named for its bound
         bound = (f"; {best_entry['label']} predicts best, but {', '.join(best_entry['at_bound'])} ended at a bound of "

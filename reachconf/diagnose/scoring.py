@@ -1,0 +1,174 @@
+"""The *which* step's scoring: the base, screened single effects and pairs, cross-fitted on held-out cases.
+
+:func:`score_models` fits the base model on all cases (and, with
+``loss_scale = "case"``, weighs each case by the base's misfit on it), screens
+every (effect, target) by a fit of its own parameters, cross-fits the best
+``screen`` of them jointly with the base parameters, pairs of the best
+``pair_top`` that predict better than the base at all (z >= 1), and the
+candidates screened again next to the best single effect (``pair_next``).
+
+With a reference run (:mod:`reachconf.diagnose.reference`) every model is
+cross-fitted on the reference cases too and scored by its *excess* loss over
+them, and the screens are ranked by how much more a candidate lowers the
+training loss on the suite than on the reference: the candidates that explain
+the change are the ones carried forward, not those that absorb the base
+model's misfit common to both recordings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from itertools import combinations
+
+from reachconf.diagnose.fit import Candidate, fit_candidate
+from reachconf.diagnose.reference import excess_scores
+from reachconf.diagnose.scales import case_weights, residual_scale
+from reachconf.diagnose.select import cross_fit, fold_start, paired_test
+
+__all__ = ["score_models"]
+
+
+def _start(fits, base_params=None):
+    """Per-fold starting values from earlier fold fits (effect parameters; base parameters of the first)."""
+    out = []
+    for parts in zip(*fits):
+        st = dict(base_params or parts[0].base_params)
+        for f in parts:
+            st.update(f.effect_params)
+        out.append(st)
+    return out
+
+
+class _Scorer:
+    """Cross-fits and screens on the suite, and with a reference also on it (excess losses, differential screens)."""
+
+    def __init__(self, model, prepared, ref, folds, sigma, fit_names, options, cache, base_full, base_ref_full):
+        self.model, self.prepared, self.ref, self.folds = model, prepared, ref, folds
+        self.sigma, self.fit_names, self.options, self.cache = sigma, fit_names, options, cache
+        self.base_full, self.base_ref_full = base_full, base_ref_full
+
+    def cross(self, cand, start):
+        sc = cross_fit(self.model, cand, self.prepared, self.folds, self.sigma, self.fit_names, self.options,
+                       self.cache, start=start)  # fmt: skip
+        if self.ref is None:
+            return sc
+        # the effects start from their own guesses (or start grids) on the reference, not from the suite's values:
+        # a fit stuck near the suite's value would understate what the effect can remove there
+        on_ref = cross_fit(self.model, cand, self.ref, self.folds, self.sigma, self.fit_names, self.options,
+                           self.cache, start=dict(self.base_ref_full.base_params))  # fmt: skip
+        return excess_scores(sc, on_ref)
+
+    def screen(self, cand, start=None, ref_start=None):
+        """A screening fit (effect parameters only, the base's fixed) and its ranking key."""
+        f = fit_candidate(self.base_full.model, cand, self.prepared, self.sigma, (), self.options, self.cache,
+                          start=start, max_nfev=20)  # fmt: skip
+        if self.ref is None:
+            return f, f.train_cost
+        fr = fit_candidate(self.base_ref_full.model, cand, self.ref, self.sigma, (), self.options, self.cache,
+                           start=ref_start, max_nfev=20)  # fmt: skip
+        return f, f.train_cost - fr.train_cost
+
+
+def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names, options, cache, bar, state,
+                 ref=None):  # fmt: skip
+    """Base, screening, cross-fitted singles and pairs, into ``state`` (kept when interrupted).
+
+    ``state``: ``base_full``, ``base`` (scored), ``models`` (scored singles and
+    pairs), ``screen`` (screening fits), ``scale`` (the loss scale per channel:
+    ``sigma`` or, with ``loss_scale="residual"``, the base's misfit); with
+    ``ref`` (prepared reference cases) also ``base_suite`` and ``base_ref``
+    (the base scored on each), and ``base``/``models`` hold excess losses.
+    With ``loss_scale="case"`` the cases of ``prepared`` (and ``ref``, with the
+    same weights) are replaced in place by copies carrying their weights.
+    """
+    base_full = fit_candidate(model, Candidate(()), prepared, sigma, fit_names, options, cache)
+    if options.loss_scale == "residual":
+        sigma = residual_scale(base_full, prepared, sigma, options)
+        base_full = fit_candidate(model, Candidate(()), prepared, sigma, fit_names, options, cache,
+                                  start=dict(base_full.base_params))  # fmt: skip
+    elif options.loss_scale == "case":
+        w = case_weights(base_full, prepared, sigma, options)
+        prepared[:] = [replace(d, weight=float(wi)) for d, wi in zip(prepared, w)]
+        base_full = fit_candidate(model, Candidate(()), prepared, sigma, fit_names, options, cache,
+                                  start=dict(base_full.base_params))  # fmt: skip
+    state["scale"] = sigma
+    state["base_full"] = base_full
+    base_ref_full = None
+    if ref is not None:
+        ref[:] = [replace(r, weight=d.weight) for r, d in zip(ref, prepared)]
+        base_ref_full = fit_candidate(model, Candidate(()), ref, sigma, fit_names, options, cache,
+                                      start=dict(base_full.base_params))  # fmt: skip
+    sc = _Scorer(model, prepared, ref, folds, sigma, fit_names, options, cache, base_full, base_ref_full)
+    base = cross_fit(model, Candidate(()), prepared, folds, sigma, fit_names, options, cache,
+                     start=dict(base_full.base_params))  # fmt: skip
+    if ref is not None:
+        state["base_suite"] = base
+        state["base_ref"] = cross_fit(model, Candidate(()), ref, folds, sigma, fit_names, options, cache,
+                                      start=dict(base_ref_full.base_params))  # fmt: skip
+        base = excess_scores(base, state["base_ref"])
+    state["base"] = base
+    bar.update(1)
+    screen, keys = state["screen"], []
+    for e, tgt in candidates:
+        bar.set_postfix_str(f"screen {e.name}({tgt})")
+        f, key = sc.screen(Candidate(((e, tgt),)))
+        screen.append(f)
+        keys.append(key)
+    order = sorted(range(len(screen)), key=lambda i: keys[i])
+    screen[:] = [screen[i] for i in order]
+    bar.update(1)
+    models = state["models"]
+    for f in screen[: options.screen]:
+        bar.set_postfix_str(f.candidate.label)
+        models.append(sc.cross(f.candidate, {**base_full.base_params, **f.effect_params}))
+        bar.update(1)
+    # pairs of the best singles that predict the held-out cases better than the base at all (z >= 1)
+    useful = [m for m in models if paired_test(m.losses, state["base"].losses, clusters)["z"] >= 1.0]
+    ranked = sorted(useful, key=lambda m: m.total)
+    top = ranked[: options.pair_top]
+    for a, b in combinations(top, 2):
+        if a.candidate.keys & b.candidate.keys:
+            continue
+        better = a if a.total <= b.total else b
+        st = _start([a.folds, b.folds])
+        for s, fb in zip(st, better.folds):
+            s.update(fb.base_params)
+        cand = Candidate(a.candidate.parts + b.candidate.parts)
+        bar.set_postfix_str(cand.label)
+        models.append(sc.cross(cand, st))
+        bar.update(1)
+    # a second effect can be masked by a large first one (screened alone, it imitates the first): the effects
+    # screened again next to the best single — and next to a single the best does not beat (z < z_separate: the
+    # data may hold either, e.g. a lag and a dead time) —, the best ``pair_next`` of the new pairs scored as well
+    if ranked and options.pair_next > 0:
+        firsts = [ranked[0]] + [m for m in ranked[1:] if len(m.candidate.keys) == 1
+                                and paired_test(ranked[0].losses, m.losses, clusters)["z"] < options.z_separate][:1]
+        for first in firsts:
+            _next_to(first, sc, candidates, bar, models)
+
+
+def _next_to(first, sc, candidates, bar, models):
+    """Screen every candidate next to the single effect ``first``; cross-fit the best ``pair_next`` pairs and
+    their second effect alone (into ``models``)."""
+    have = {m.candidate.keys for m in models}
+    fs = fold_start(first)
+    effect_start = {k: v for k, v in fs.items() if isinstance(k, tuple)}
+    st0 = {**sc.base_full.base_params, **effect_start}
+    nxt = []
+    for e, tgt in candidates:
+        cand = Candidate(first.candidate.parts + ((e, tgt),))
+        new_code = cand.structural and cand.structural not in sc.cache
+        if (e.name, tgt) in first.candidate.keys or cand.keys in have or new_code:
+            continue  # (no new model code is generated for this screen)
+        bar.set_postfix_str(f"next to {first.label}: {e.name}({tgt})")
+        nxt.append(sc.screen(cand, start=st0, ref_start=dict(effect_start)))
+    nxt.sort(key=lambda fk: fk[1])
+    for f, _ in nxt[: sc.options.pair_next]:
+        st = {**fs, **f.effect_params}
+        bar.set_postfix_str(f.candidate.label)
+        models.append(sc.cross(f.candidate, st))
+        single = Candidate(f.candidate.parts[-1:])  # the pair must beat this one too (select.decide)
+        if single.keys not in have:
+            (key1,) = single.keys
+            models.append(sc.cross(single, {**sc.base_full.base_params, key1: f.effect_params[key1]}))
+            have.add(single.keys)

@@ -1,0 +1,122 @@
+"""Diagnosis against a reference run: the effect that explains the *rise* of the misfit is named.
+
+The plant has a cubic spring the model lacks (a structural misfit no library
+effect is) and, in the suite, a velocity-sensor bias too small to earn a name
+next to that misfit (it removes less than ``min_improvement`` of the held-out
+loss).  Against a reference run of the same inputs without the bias (other
+noise), the bias explains the whole excess and is named and sized.
+"""
+
+import numpy as np
+import pytest
+
+import reachconf as rc
+from reachconf.diagnose.options import DiagnoseOptions
+from reachconf.errors import OptionsError
+from reachconf.io import TestCase, TestSuite
+from reachconf.model.simulate import simulate
+
+PLANT = rc.Model(name="plant", states=("p", "v"), inputs=("u",), disturbances=("w",),
+                 params={"k": 4.0, "d": 0.8, "c3": 3.0},
+                 dynamics=lambda s: [s.v, -s.k * s.p - s.c3 * s.p**3 - s.d * s.v + s.u + s.w])  # fmt: skip
+MODEL = rc.Model(name="oscillator", states=("p", "v"), inputs=("u",), disturbances=("w",), params={"k": 4.0, "d": 0.8},
+                 dynamics=lambda s: [s.v, -s.k * s.p - s.d * s.v + s.u + s.w])  # fmt: skip
+EFFECTS = ["output_offset", "input_offset", "actuator_lag", "output_scale", "input_scale"]
+OPTS = DiagnoseOptions(tube_horizon=0.0)
+
+
+def _suite(bias=0.0, noise_seed=0, n=6, duration=10.0):
+    cases = []
+    for i in range(n):
+        ru = np.random.default_rng(i)  # the same inputs in every suite
+        rng = np.random.default_rng(1000 * noise_seed + i)
+        t = np.round(np.arange(0, duration + 1e-9, 0.01), 10)
+        u = sum(2.0 * np.sin(2 * np.pi * f * t + ru.uniform(0, 6)) for f in ru.uniform(0.1, 1.5, size=3))
+        X = simulate(PLANT, [0.0, 0.0], t, inputs=u[:, None], substeps=4)
+        Y = X + rng.normal(scale=0.002, size=X.shape).clip(-0.004, 0.004)
+        Y[:, 1] += bias
+        cases.append(TestCase(f"c{i}", f"g{i % 3}", t, u[:, None], Y, ("u",), ("p", "v")))
+    return TestSuite(cases)
+
+
+def test_a_small_bias_next_to_a_structural_misfit_is_named_against_a_reference_run():
+    suite, ref = _suite(bias=0.05, noise_seed=2), _suite(noise_seed=1)
+    alone = rc.diagnose(MODEL, suite, effects=EFFECTS, progress=False, options=OPTS)
+    assert alone.status == "none", alone.verdict  # the cubic spring's misfit drowns it
+    rep = rc.diagnose(MODEL, suite, effects=EFFECTS, progress=False, options=OPTS, reference=ref)
+    assert rep.status == "named", rep.verdict
+    assert [(e["effect"], e["target"]) for e in rep.named] == [("output_offset", "v")]
+    c = rep.named[0]
+    assert abs(c["params"]["c"] - 0.05) < 0.01 and c["interval"]["c"][0] <= 0.05 <= c["interval"]["c"][1]
+    ref_rec = rep.decision["reference"]
+    assert ref_rec["z"] >= OPTS.z_name and 0.0 < ref_rec["share"] < 0.3
+    assert rep.verdict.startswith("against the reference run")
+    # the shares are of the excess: the named bias removes (about) all of it
+    entry = next(e for e in rep.ranked_effects if e["label"] == "output_offset(v)")
+    assert entry["prediction_gain"] > 0.8
+    assert rep.base["held_out_loss"] == pytest.approx(alone.base["held_out_loss"], rel=0.05)  # the suite's own loss
+
+
+def test_no_change_against_the_reference_names_nothing():
+    rep = rc.diagnose(MODEL, _suite(noise_seed=2), effects=EFFECTS, progress=False, options=OPTS,
+                      reference=_suite(noise_seed=1))  # fmt: skip
+    assert rep.status == "none" and rep.named == []
+    assert rep.verdict.startswith("no change against the reference run")
+    assert rep.decision["reference"]["z"] < OPTS.z_name
+
+
+def test_a_reference_must_hold_the_same_cases():
+    suite = _suite(bias=0.05, n=4, duration=6.0)
+    with pytest.raises(OptionsError, match="holds 3 test cases, the suite 4"):
+        rc.diagnose(MODEL, suite, effects=EFFECTS, progress=False, options=OPTS,
+                    reference=TestSuite(list(_suite(n=3, duration=6.0))))  # fmt: skip
+    with pytest.raises(OptionsError, match="sample times"):
+        rc.diagnose(MODEL, suite, effects=EFFECTS, progress=False, options=OPTS, reference=_suite(n=4, duration=5.0))
+
+
+def test_against_a_reference_a_second_effect_must_explain_a_share_of_the_change_itself(scored):
+    from reachconf.diagnose.select import decide, window_clusters
+
+    rng = np.random.default_rng(0)
+    clusters = window_clusters([10] * 10, min_clusters=8)
+    base = scored([], 1.0 + 0.05 * rng.random(100))  # the excess over the reference, per window
+    first = scored([("output_offset", "v")], 0.01 + 0.001 * rng.random(100))  # explains 99 % of it
+    pair = scored([("output_offset", "v"), ("input_scale", "u")], 0.001 * rng.random(100))  # the last 1 %
+    second = scored([("input_scale", "u")], base.losses * 0.999)
+    # of what the first effect left, the second removes ~95 % (z large): named as a pair on its own terms ...
+    assert decide(base, [first, pair, second], clusters, OPTS)["chosen"].label == pair.label
+    # ... but it explains 1 % of the change: against the base's excess it is not relevant
+    d = decide(base, [first, pair, second], clusters, OPTS, relevance_of=base.total)
+    assert d["status"] == "named" and d["chosen"].label == "output_offset(v)"
+    t = next(t for t in d["tests"][pair.label] if t["against"] == "output_offset(v)")
+    assert t["z"] >= OPTS.z_name and t["gain"] < 0.02
+
+
+def test_cli_diagnose_against_a_reference_suite(tmp_path):
+    import json
+    import sys
+
+    from reachconf.cli import main
+    from reachconf.io import save_suite
+
+    save_suite(_suite(bias=0.05, noise_seed=2), tmp_path / "suite")
+    save_suite(_suite(noise_seed=1), tmp_path / "ref")
+    (tmp_path / "osc_ref.py").write_text(
+        "import reachconf as rc\n"
+        "model = rc.Model(name='oscillator', states=('p', 'v'), inputs=('u',), disturbances=('w',),\n"
+        "                 params={'k': 4.0, 'd': 0.8}, dynamics=lambda s: [s.v, -s.k*s.p - s.d*s.v + s.u + s.w])\n"
+    )
+    run = tmp_path / "run.toml"
+    head = 'model = "osc_ref:model"\nsuite = "suite"\n[diagnose]\ntube_horizon = 0.0\n'
+    run.write_text(head + 'reference = "ref"\neffects = ' + json.dumps(EFFECTS) + "\n")
+    sys.path.insert(0, str(tmp_path))
+    try:
+        assert main(["diagnose", str(run), "--json", str(tmp_path / "r.json")]) == 0
+        d = json.loads((tmp_path / "r.json").read_text())
+        assert d["decision"]["reference"]["z"] >= 3 and d["decision"]["named"][0]["effect"] == "output_offset"
+        run.write_text(head + 'reference = "nowhere"\n')
+        assert main(["diagnose", str(run)]) == 2
+        run.write_text(head + "reference = 3\n")
+        assert main(["diagnose", str(run)]) == 2
+    finally:
+        sys.path.remove(str(tmp_path))
