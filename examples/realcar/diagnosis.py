@@ -23,14 +23,16 @@ CANDIDATES = (("tire_fiala", "c_f"), ("tire_fiala", "axles"), ("dead_time", "del
 FIT = ("J_z", "c_f", "c_r")
 
 
-def run_diagnosis(model, suite, V, seed=0, progress=False, effects=CANDIDATES, options=None, fit_params=FIT):
+def run_diagnosis(model, suite, V, seed=0, progress=False, effects=CANDIDATES, options=None, fit_params=FIT,
+                  reference=None):  # fmt: skip
     """The :class:`reachconf.diagnose.GapReport` of ``model`` on ``suite`` with :data:`CANDIDATES`.
 
     ``options``: a :class:`reachconf.diagnose.DiagnoseOptions` (default: the library's defaults);
-    ``fit_params``: the base parameters refitted with every candidate (default :data:`FIT`).
+    ``fit_params``: the base parameters refitted with every candidate (default :data:`FIT`);
+    ``reference``: the same cases without the change (``rc.diagnose(..., reference=)``).
     """
     return rc.diagnose(model, suite, effects=list(effects), fit_params=fit_params, V=V, seed=seed, progress=progress,
-                       options=options)  # fmt: skip
+                       options=options, reference=reference)  # fmt: skip
 
 
 def named_model(model, report):

@@ -22,14 +22,16 @@ biases and delays of its own).  As a command, the clean run and every
 injection are diagnosed and judged::
 
     python examples/realcar/withheld.py --data ../shared/data/realcar --out DIR [--loss-scale sensor]
-        [--only yaw_bias ax_scale] [--value yaw_bias=0.02] [--stop 120] [--signal-only] [--stage2]
+        [--only yaw_bias ax_scale] [--value yaw_bias=0.02] [--stop 120] [--signal-only] [--stage2] [--reference]
 
 writes ``DIR/withheld.json`` and ``DIR/withheld.md``.  With ``--stage2`` (the
 two-stage workflow of ``adopt.py``), the clean run's findings are adopted into
 the model (fitted on the clean run, the car's own steering timing included)
 and the clean run and every injection are diagnosed again with that model,
 its parameters fixed, and the signal candidates; the injections are judged
-against the clean run's stage-2 fit, and the adoption is recorded.
+against the clean run's stage-2 fit, and the adoption is recorded.  With ``--reference``, every injection is
+diagnosed against the clean run as the reference (``rc.diagnose(..., reference=clean_suite)``: which effect
+explains how the injected run's misfit exceeds the clean run's, :mod:`reachconf.diagnose.reference`).
 """
 
 from __future__ import annotations
@@ -130,6 +132,9 @@ def judge(report, clean, truth, tolerance=0.3) -> dict:
     own = {(e["effect"], e["target"]) for e in clean.named}
     new = [n for n in named if n not in own]
     first = bool(new) and new[0] == (eff, tgt)
+    # an "indistinguishable" verdict that lists the injected effect among the explanations it cannot separate
+    alts = [{tuple(p) for p in a.get("parts", [])} for a in report.decision.get("alternatives", [])]
+    among = report.decision.get("status") == "indistinguishable" and any((eff, tgt) in a for a in alts + [set(named)])
     ref = clean_value(clean, eff, tgt, param)
     entry = next((e for e in report.named if (e["effect"], e["target"]) == (eff, tgt)), None)
     found = float(entry["params"][param]) if entry else clean_value(report, eff, tgt, param)
@@ -142,6 +147,7 @@ def judge(report, clean, truth, tolerance=0.3) -> dict:
                       (None, {}))  # fmt: skip
     return {"truth": f"{eff}({tgt}) {param} = {size:g}", "status": report.decision.get("status"),
             "named": " + ".join(f"{e}({t})" for e, t in named) or "none", "named_first": first,
+            "indistinguishable": bool(among) and not first,
             "from_named_model": entry is not None, "found": found, "clean": ref, "moved": moved, "injected": want,
             "relative_error": error, "sized": first and abs(error) <= tolerance, "best_rank": rank,
             "best_model": best.get("label"), "best_gain": best.get("prediction_gain"), "best_z": best.get("z_vs_base"),
@@ -168,6 +174,8 @@ def main(argv=None):
     ap.add_argument("--signal-only", action="store_true", help="signal candidates only (no tyre models)")
     ap.add_argument("--stage2", action="store_true",
                     help="adopt the clean run's findings into the model, then diagnose with it (adopt.py)")
+    ap.add_argument("--reference", action="store_true",
+                    help="diagnose every injection against the clean run as the reference (what changed)")
     args = ap.parse_args(argv)
     values = dict(VALUES)
     for item in args.value:
@@ -182,9 +190,10 @@ def main(argv=None):
     opts = rc.DiagnoseOptions(**({"loss_scale": args.loss_scale} if args.loss_scale else {}))
     effects = SIGNAL_CANDIDATES if args.signal_only else CANDIDATES
 
-    def diag(c):
+    def diag(c, reference=None):
         w, cpu = time.perf_counter(), time.process_time()
-        rep = run_diagnosis(single_track(), make_suite(c, stop=stop), V, effects=effects, options=opts)
+        rep = run_diagnosis(single_track(), make_suite(c, stop=stop), V, effects=effects, options=opts,
+                            reference=reference)  # fmt: skip
         return rep, time.perf_counter() - w, time.process_time() - cpu
 
     clean, w, cpu = diag(cols)
@@ -200,10 +209,11 @@ def main(argv=None):
         adopted = adopt(single_track(), clip(cols), clean, FIT, options=opts)
         print(f"adopted ({time.perf_counter() - w:.0f} s wall): {adopted.to_dict()}", flush=True)
 
-        def diag(c):  # stage 2: the adopted model, its parameters fixed, the signal candidates
+        def diag(c, reference=None):  # stage 2: the adopted model, its parameters fixed, the signal candidates
             w, cpu = time.perf_counter(), time.process_time()
+            ref = make_suite(adopted.apply(reference), stop=stop) if reference is not None else None
             rep = run_diagnosis(adopted.model, make_suite(adopted.apply(c), stop=stop), V, effects=SIGNAL_CANDIDATES,
-                                options=opts, fit_params=())  # fmt: skip
+                                options=opts, fit_params=(), reference=ref)  # fmt: skip
             return rep, time.perf_counter() - w, time.process_time() - cpu
 
         clean, w, cpu = diag(cols)
@@ -212,19 +222,21 @@ def main(argv=None):
         print(f"clean, stage 2 ({w:.0f} s wall, {cpu:.0f} s CPU): {clean.verdict}", flush=True)
     for name in args.only:
         inj, truth = inject(cols, name, values[name])
-        rep, w, cpu = diag(inj)
+        rep, w, cpu = diag(inj, reference=(cols if args.stage2 else make_suite(cols, stop=stop)) if args.reference
+                           else None)  # fmt: skip
         rep.to_json(out / f"{name}.json")
         rows[name] = {**judge(rep, clean, truth), "wall": w, "cpu": cpu}
         r = rows[name]
-        print(f"{name}: named {r['named']} (first: {r['named_first']}), moved {r['moved']:.4g} vs {r['injected']:.4g} "
+        print(f"{name}: named {r['named']} (first: {r['named_first']}, indistinguishable: {r['indistinguishable']}), "
+              f"moved {r['moved']:.4g} vs {r['injected']:.4g} "
               f"({100 * r['relative_error']:+.0f} %), best rank {r['best_rank']} {r['best_model']} gain {r['best_gain']} "
               f"z {r['best_z']} ({w:.0f} s wall, {cpu:.0f} s CPU)",
               flush=True)  # fmt: skip
     result = {"loss_scale": opts.loss_scale, "min_improvement": opts.min_improvement, "stop": args.stop, "signal_only": args.signal_only, "values": values,
-              "stage2": args.stage2, "adopted": adopted.to_dict() if adopted else None, "rows": rows}  # fmt: skip
+              "stage2": args.stage2, "reference": args.reference, "adopted": adopted.to_dict() if adopted else None, "rows": rows}  # fmt: skip
     atomic_write(out / "withheld.json", json_text(result))
     lines = [f"# Injected effects (loss_scale = {opts.loss_scale}, min_improvement = {opts.min_improvement:g}"
-             f"{', two-stage' if adopted else ''})", ""]  # fmt: skip
+             f"{', two-stage' if adopted else ''}{', against the clean run' if args.reference else ''})", ""]  # fmt: skip
     if adopted:
         a = adopted.to_dict()
         found = [f"{k}: " + ", ".join(f"{p} = {v:.4g}" for p, v in pv.items()) for k, pv in a["effect_params"].items()]
@@ -233,10 +245,12 @@ def main(argv=None):
                   + f"; steering timing {a['timing']:+.4f} s", ""]  # fmt: skip
     lines += ["| injected | named | first | moved / injected | error | best rank | its held-out gain (z) |",
               "|---|---|---|---|---|---|---|"]  # fmt: skip
+    # (first: True, False, or "indistinguishable" when the verdict lists it among explanations it cannot separate)
     for name in args.only:
         r = rows[name]
         gain = "" if r["best_gain"] is None else f"{100 * r['best_gain']:.0f} % ({r['best_z']:.1f}): {r['best_model']}"
-        lines.append(f"| {r['truth']} | {r['named']} | {r['named_first']} | {r['moved']:.4g} / {r['injected']:.4g} "
+        first = "indistinguishable" if r.get("indistinguishable") else r["named_first"]
+        lines.append(f"| {r['truth']} | {r['named']} | {first} | {r['moved']:.4g} / {r['injected']:.4g} "
                      f"| {100 * r['relative_error']:+.0f} % | {r['best_rank']} | {gain} |")  # fmt: skip
     atomic_write(out / "withheld.md", "\n".join(lines) + "\n")
     return 0

@@ -332,6 +332,29 @@ def test_injected_effect_is_named_first_and_sized_within_30_percent(clean_diagno
     assert j["sized"], j
 
 
+#: against the clean run as the reference (``rc.diagnose(..., reference=)``): the same values as the slow checks
+#: above; the steering lag and dead time may be reported as indistinguishable from each other (the verdict names
+#: both and the probe that separates them), which counts as found
+@needs_data
+@pytest.mark.slow
+@pytest.mark.parametrize("name, value", [("steer_offset", 0.01), ("ax_scale", 0.9), ("yaw_bias", 0.03),
+                                         ("dead_time", 0.05), ("lag", 0.1)])  # fmt: skip
+def test_injected_effect_against_the_clean_run_is_found_and_sized_within_30_percent(clean_diagnosis, name, value):
+    """The whole run, every candidate, the clean run as the reference (what changed)."""
+    from reachconf.models import single_track
+
+    data, diagnosis, withheld = _realcar_modules()
+    cols, V, clean = clean_diagnosis
+    inj, truth = withheld.inject(cols, name, value)
+    report = diagnosis.run_diagnosis(single_track(), data.make_suite(inj), V, reference=data.make_suite(cols))
+    j = withheld.judge(report, clean, truth)
+    assert report.decision["reference"]["z"] >= 3, report.verdict
+    assert j["named_first"] or j["indistinguishable"], j["verdict"]
+    assert abs(j["relative_error"]) <= 0.3, j
+    # nothing the clean run also has is named: only the injected effect (or its indistinguishable twin)
+    assert len(report.named) == 1, report.verdict
+
+
 def _adopt_module():
     _realcar_modules()
     import adopt
