@@ -151,7 +151,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         Also synthesise the reachset-conformant W (steps 1-3 of section 4.3.2,
         the α-search of eq. 68) of the held-out segments for the base and the
         named model (``before_after["W_reachset"]``); slower.
-    reference : TestSuite or iterable of TestCase, optional
+    reference : TestSuite, iterable of TestCase or path of a suite folder, optional
         The same cases (same order and sample times) recorded without the
         change: the effect named is then the one that explains how the suite's
         misfit exceeds the reference's (:mod:`reachconf.diagnose.reference`;

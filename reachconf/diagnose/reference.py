@@ -25,6 +25,8 @@ cases: the same number, in the same order, with the same sample times.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from reachconf.diagnose.fit import prepare, window_counts
@@ -37,11 +39,20 @@ __all__ = ["prepare_reference", "excess_scores", "change_test"]
 def prepare_reference(model, reference, prepared, options) -> list:
     """The reference cases prepared like the suite's, checked to pair with them window by window.
 
+    ``reference``: a :class:`~reachconf.io.TestSuite`, a list of test cases, or the path of a suite folder.
+
     Raises
     ------
     OptionsError
         When the reference holds another number of cases, or a case with other sample times.
     """
+    if isinstance(reference, (str, os.PathLike)):  # a suite folder
+        from reachconf.io import load_suite
+
+        reference = load_suite(reference, model=model)
+    if not hasattr(reference, "__iter__"):
+        raise OptionsError(f"reference must be a TestSuite, a list of TestCase or a suite folder, "
+                           f"got {type(reference).__name__}")  # fmt: skip
     cases = list(reference)
     if len(cases) != len(prepared):
         raise OptionsError(f"reference: it holds {len(cases)} test cases, the suite {len(prepared)}; the reference "

@@ -72,6 +72,17 @@ def test_a_reference_must_hold_the_same_cases():
                     reference=TestSuite(list(_suite(n=3, duration=6.0))))  # fmt: skip
     with pytest.raises(OptionsError, match="sample times"):
         rc.diagnose(MODEL, suite, effects=EFFECTS, progress=False, options=OPTS, reference=_suite(n=4, duration=5.0))
+    with pytest.raises(OptionsError, match="reference must be a TestSuite"):
+        rc.diagnose(MODEL, suite, effects=EFFECTS, progress=False, options=OPTS, reference=3.0)
+
+
+def test_a_reference_can_be_a_suite_folder(tmp_path):
+    from reachconf.io import save_suite
+
+    save_suite(_suite(noise_seed=1, n=4, duration=6.0), tmp_path / "ref")
+    rep = rc.diagnose(MODEL, _suite(noise_seed=2, n=4, duration=6.0), effects=["output_offset"], progress=False,
+                      options=OPTS, reference=str(tmp_path / "ref"))  # fmt: skip
+    assert rep.status == "none" and rep.verdict.startswith("no change against the reference run")
 
 
 def test_against_a_reference_a_second_effect_must_explain_a_share_of_the_change_itself(scored):
