@@ -68,7 +68,12 @@ class GapReport(JsonResult):
         ``alternatives`` (explanations the data cannot separate from the
         chosen one: ``label``, ``parts``, ``z``, ``differs``, ``effects``,
         ``separating`` — the probe maneuver that would separate them — and
-        ``data_band_shares``), ``admissible``, ``tests``, ``thresholds``.
+        ``data_band_shares``), ``admissible``, ``tests``, ``thresholds``;
+        with a reference run (``diagnose(..., reference=)``) also
+        ``reference``: ``excess_loss``, ``share`` (of the suite's base loss)
+        and ``z`` of the base model's excess misfit over it — the shares in
+        ``tests`` and the ranked entries' ``prediction_gain`` are then of that
+        excess.
     """
 
     where: dict
