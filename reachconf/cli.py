@@ -74,14 +74,9 @@ class _Run:
 
 
 def _select_cases(spec, args):
-    suite = spec.suite()
-    if getattr(args, "case", None):
-        names = {c.name for c in suite}
-        missing = [c for c in args.case if c not in names]
-        if missing:
-            raise DataError(f"{spec.suite_path}: no test case {missing}; cases: {sorted(names)}")
-        suite = suite.select(names=args.case)
-    return suite
+    from reachconf.runfile import select_cases
+
+    return select_cases(spec.suite(), getattr(args, "case", None), spec.suite_path)
 
 
 def _load(args):

@@ -45,7 +45,7 @@ from reachconf.models import get_model
 from reachconf.reach_options import ReachOptions
 from reachconf.sets.core import Interval
 
-__all__ = ["RunSpec", "load_run", "resolve_model", "diagnose_settings"]
+__all__ = ["RunSpec", "load_run", "resolve_model", "diagnose_settings", "select_cases"]
 
 _KEYS = {"model", "suite", "params", "sets", "reach", "trace", "synthesis", "description", "workers", "diagnose"}
 
@@ -186,6 +186,17 @@ def load_run(path) -> RunSpec:
     return RunSpec(path, model, suite_path, W, V, X0, reach_opts, method, trace_opts, synth_opts, workers, raw)
 
 
+def select_cases(suite, names, path):
+    """The cases ``names`` of ``suite`` (all when ``names`` is empty); a missing name is a DataError naming ``path``."""
+    if not names:
+        return suite
+    have = {c.name for c in suite}
+    missing = [c for c in names if c not in have]
+    if missing:
+        raise DataError(f"{path}: no test case {missing}; cases: {sorted(have)}")
+    return suite.select(names=names)
+
+
 def diagnose_settings(spec: RunSpec, cases=None) -> dict:
     """Keyword arguments of :func:`reachconf.diagnose` from the run file's ``[diagnose]`` table.
 
@@ -229,12 +240,6 @@ def diagnose_settings(spec: RunSpec, cases=None) -> dict:
         if not isinstance(ref, str):
             raise DataError(f"{where}: reference must be the path of a test-suite folder, got {ref!r}")
         path = (spec.path.parent / ref).resolve()
-        suite = load_suite(path, model=spec.model)
-        if cases:
-            missing = sorted(set(cases) - {c.name for c in suite})
-            if missing:
-                raise DataError(f"{path}: no test case {missing} in the reference suite")
-            suite = suite.select(names=cases)
-        kwargs["reference"] = suite
+        kwargs["reference"] = select_cases(load_suite(path, model=spec.model), cases, path)
     kwargs["options"] = _options(DiagnoseOptions, table, where)
     return kwargs

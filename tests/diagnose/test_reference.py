@@ -103,7 +103,7 @@ def test_against_a_reference_a_second_effect_must_explain_a_share_of_the_change_
     assert t["z"] >= OPTS.z_name and t["gain"] < 0.02
 
 
-def test_cli_diagnose_against_a_reference_suite(tmp_path):
+def test_cli_diagnose_against_a_reference_suite(tmp_path, capsys):
     import json
     import sys
 
@@ -125,6 +125,14 @@ def test_cli_diagnose_against_a_reference_suite(tmp_path):
         assert main(["diagnose", str(run), "--json", str(tmp_path / "r.json")]) == 0
         d = json.loads((tmp_path / "r.json").read_text())
         assert d["decision"]["reference"]["z"] >= 3 and d["decision"]["named"][0]["effect"] == "output_offset"
+        # a --case the suite has but the reference lacks: one line naming the reference folder, status 2
+        save_suite(TestSuite([TestCase(f"other{i}", c.group, c.t, c.U, c.Y, c.input_names, c.output_names)
+                              for i, c in enumerate(_suite(noise_seed=1))]), tmp_path / "ref2")  # fmt: skip
+        run.write_text(head + 'reference = "ref2"\n')
+        capsys.readouterr()
+        assert main(["diagnose", str(run), "--case", "c0"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "ref2" in err and "no test case ['c0']" in err, err
         run.write_text(head + 'reference = "nowhere"\n')
         assert main(["diagnose", str(run)]) == 2
         run.write_text(head + "reference = 3\n")
