@@ -113,8 +113,9 @@ def window_clusters(windows_per_case, min_clusters: int) -> np.ndarray:
 def paired_test(losses_a, losses_b, clusters) -> dict:
     """Does model ``a`` predict the held-out windows better than ``b``?
 
-    Returns ``{"gain": share of b's held-out loss that a removes, "z": cluster-robust z statistic,
-    "se": its standard error (loss units), "clusters": number of clusters}``; ``z > 0`` favours ``a``.
+    Returns ``{"gain": share of b's held-out loss that a removes (0 when b's total is not positive),
+    "removed": the loss a removes (loss units), "z": cluster-robust z statistic, "se": its standard error
+    (loss units), "clusters": number of clusters}``; ``z > 0`` favours ``a``.
     """
     D = np.bincount(clusters, weights=np.asarray(losses_b) - np.asarray(losses_a))
     C = D.size
@@ -122,7 +123,8 @@ def paired_test(losses_a, losses_b, clusters) -> dict:
     var = C / (C - 1) * float(np.sum((D - D.mean()) ** 2)) if C > 1 else 0.0
     z = G / np.sqrt(var) if var > 0 else (np.inf if G > 0 else (-np.inf if G < 0 else 0.0))
     total_b = float(np.sum(losses_b))
-    return {"gain": G / total_b if total_b > 0 else 0.0, "z": float(z), "se": float(np.sqrt(var)), "clusters": int(C)}
+    return {"gain": G / total_b if total_b > 0 else 0.0, "removed": G, "z": float(z), "se": float(np.sqrt(var)),
+            "clusters": int(C)}  # fmt: skip
 
 
 def cross_fit(base_model, cand: Candidate, data, folds, sigma, fit_names, options, cache, start=None) -> Scored:
@@ -173,7 +175,7 @@ def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, sprea
         t = paired_test(m.losses, r.losses, clusters) if f is None else paired_test(m.losses * f, r.losses * f, clusters)
         t["against"] = r.label
         if relevance_of is not None:  # the share of a fixed loss (the base's excess over a reference run)
-            t["gain"] = float(t["gain"] * np.sum(r.losses if f is None else r.losses * f) / relevance_of)
+            t["gain"] = t["removed"] / relevance_of  # (also when the part's own excess is <= 0)
         tests.append(t)
         relevant = t["gain"] >= options.min_improvement
         if not relevant and ok and t["z"] >= options.z_name and t["gain"] >= options.consistent_gain:
