@@ -286,6 +286,17 @@ def test_judge_sizes_offsets_additively_and_scales_relative_to_the_clean_fit():
     assert withheld.judge(tyre_first, own, {"effect": "input_offset", "target": "delta", "params": {"c": 0.01}})["named_first"]
     assert not withheld.judge(tyre_first, clean, {"effect": "input_offset", "target": "delta",
                                                   "params": {"c": 0.01}})["named_first"]  # fmt: skip
+    # an "indistinguishable" verdict listing the injected effect among its explanations is marked, not first
+    lag = Rep([{"effect": "actuator_lag", "target": "delta", "params": {"tau": 0.06}}],
+              [{"label": "dead_time(delta)", "parts": [["dead_time", "delta"]], "held_out_loss": 1.0,
+                "params": {"T": 0.06}}], "indistinguishable")  # fmt: skip
+    lag.decision["alternatives"] = [{"parts": [["dead_time", "delta"]]}]
+    clean_t = Rep([], [{"label": "dead_time(delta)", "params": {"T": 0.0}}], "none")
+    j = withheld.judge(lag, clean_t, {"effect": "dead_time", "target": "delta", "params": {"T": 0.06}})
+    assert j["indistinguishable"] and not j["named_first"] and j["moved"] == pytest.approx(0.06)
+    lag.decision["alternatives"] = [{"parts": [["input_offset", "delta"]]}]
+    assert not withheld.judge(lag, clean_t, {"effect": "dead_time", "target": "delta",
+                                             "params": {"T": 0.06}})["indistinguishable"]  # fmt: skip
 
 
 #: the slow checks: values other than the example's (withheld.VALUES) and the default checks'.  The steering
