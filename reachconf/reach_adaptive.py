@@ -30,8 +30,7 @@ time the parent asked, and the lineage stops when the geometric mean of these
 ratios over its restarts exceeds :data:`RESTART_FEEDBACK`.  The mean, not the
 last ratio: restarts of a lineage lower the rate less and less as its pieces
 shrink (Van der Pol mu = 2: 0.33, 0.55, 0.74, 0.84, 0.86 down one lineage),
-and a lineage whose restarts have paid off on the whole goes on splitting
-where the error floor is.
+and a lineage whose restarts have paid off on the whole goes on splitting where the error floor is.
 
 The module also grows the kernel's output buffers, compiles the third-order
 functions only when a step asks for them, feeds the monitor and turns a
@@ -300,6 +299,7 @@ def _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=None,
     n = model.n
     K = samples.size
     opts = options
+    horizon = min(float(horizon), float(opts.alg.budget_horizon))  # the span the budget (and fractions) spread over
     remainder = opts.remainder
     kappa_mode = 0 if opts.tensor_order is None else int(opts.tensor_order)
     # a "taylor" build serves both tensor orders; "tensor" builds the third-order functions when asked

@@ -59,7 +59,7 @@ from reachconf_kernels.nonlinear import (
     quadratic_error,
     row_radius,
 )
-from reachconf_kernels.reduce_adaptive import reduce_adaptive
+from reachconf_kernels.reduce_adaptive import OUTLIER, reduce_adaptive
 from reachconf_kernels.signatures import FN_IV_REMAINDER, FN_POINT_MAT, FN_POINT_T3, FN_POINT_VEC, f8_1, f8_2
 
 # return codes of adaptive_run (the step's own codes 1..4 come back in fail[0])
@@ -183,7 +183,7 @@ def error_floor(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, err_order, err_tol
         idx[i] = i
     for i in range(q):
         idx[n + i] = n + m + i
-    cr, Gr = reduce_adaptive(np.zeros(n), G, err_tol, err_order)
+    cr, Gr = reduce_adaptive(np.zeros(n), G, err_tol, err_order, 0, OUTLIER)
     cz, Gz = extend_with_disturbance(cr, Gr, WG, n, q, True)
     qc, qG = quadratic_error(cz, Gz, Hp, n, idx)
     return abs_bound(qc, qG) + out, 0
@@ -422,8 +422,9 @@ def adaptive_run(
         else:
             state[S_DT] = base
         # -- the linear part's errors (input solution, exponential remainder): their share of the budget over the time
-        # since the start (they pile up about in proportion to it, so the share holds whatever the horizon)
-        goal = fpar[P_LIN_GOAL] * beta * fpar[P_HORIZON] / (t - fpar[P_T0])
+        # since the start (they pile up about in proportion to it, so the share holds whatever the horizon), at most over
+        # the span the budget is spread over (P_HORIZON: the horizon, at most AdaptiveReach.budget_horizon)
+        goal = fpar[P_LIN_GOAL] * beta * fpar[P_HORIZON] / min(t - fpar[P_T0], fpar[P_HORIZON])
         lin = linear_step_cap(A, BW, fz, last_rad, dt, r, goal, 10.0 * dt_min, fpar[P_HORIZON])
         state[S_DT] = min(state[S_DT], lin)
         # -- back to order 2 when its floor fits the budget again, or, where the floor is over budget and the set grows

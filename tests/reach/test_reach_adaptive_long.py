@@ -1,0 +1,61 @@
+"""The adaptive reach over a horizon of many minutes with the defaults: it finishes, and it is sound.
+
+The error budget is spread over at most ``AdaptiveReach.budget_horizon`` (100 s): spread over the
+whole horizon, the budget per unit time of a 400-s reach is so small that the abstraction error of
+a disturbed oscillator's steady set cannot meet it at any step (the reach fails within 2 s).
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+import reachconf as rc
+from reachconf.model.simulate import simulate
+from reachconf.reach_options import AdaptiveReach
+
+T_END = 400.0
+TIMES = np.arange(0.0, T_END + 0.5, 1.0)
+X0 = rc.Interval([0.9, -0.1], [1.1, 0.1])
+W = rc.Interval([-0.05], [0.05])
+
+
+def duffing():
+    """A damped hardening spring driven by a bounded disturbance: its set settles, its errors do not pile up."""
+    return rc.Model(name="duffing_long", states=("p", "v"), disturbances=("w",), params={"a": 0.3, "d": 0.5},
+                    dynamics=lambda s: [s.v, -s.p - s.a * s.p**3 - s.d * s.v + s.w])  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def tube():
+    return rc.reach(duffing(), X0, TIMES, W=W, options=rc.ReachOptions())
+
+
+def test_a_reach_of_minutes_with_the_defaults_holds_every_sampled_trajectory(tube):
+    model = duffing()
+    rng = np.random.default_rng(7)
+    sets = tube.time_point_sets
+    assert len(sets) == TIMES.size
+    lo = np.array([s.interval().lo for s in sets])
+    hi = np.array([s.interval().hi for s in sets])
+    assert np.all(hi[-1] - lo[-1] < 1.0)  # it settled (a steady set of about +-0.15), it did not blow up
+    fine = np.arange(0.0, T_END + 1e-9, 0.25)  # disturbances held 0.25 s
+    for k in range(30):
+        x0 = rng.uniform(X0.lo, X0.hi) if k else X0.hi
+        w = rng.choice([-0.05, 0.05], size=(fine.size, 1)) if k % 2 else rng.uniform(-0.05, 0.05, size=(fine.size, 1))
+        X = simulate(model, x0, fine, disturbances=w, substeps=20)[::4]
+        assert np.all(X >= lo - 1e-7) and np.all(X <= hi + 1e-7), k
+        inside = np.array([sets[i].contains(X[i][None, :], tol=1e-7)[0] for i in range(0, TIMES.size, 20)])
+        assert inside.all(), k
+
+
+def test_the_budget_over_the_whole_horizon_cannot_be_met():
+    """The old rule (``budget_horizon=inf``): the same reach fails at once, saying why."""
+    with pytest.raises(rc.ReachError, match="abstraction error|max_steps"):
+        rc.reach(duffing(), X0, TIMES, W=W, options=rc.ReachOptions(algorithm=AdaptiveReach(budget_horizon=math.inf)))
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), "100", True])
+def test_budget_horizon_must_be_a_positive_number(bad):
+    with pytest.raises(rc.OptionsError, match="budget_horizon"):
+        rc.ReachOptions(algorithm=AdaptiveReach(budget_horizon=bad))
