@@ -149,7 +149,7 @@ class AdaptiveReach(ReachAlgorithm):
         system whose states forget their past (a closed loop).  Measured:
         the closed-loop bicycle's 10,000-s straight-road recording at 100 Hz
         is undecided at t = 0.057 s with the whole horizon and conformant
-        with 100 s (4.3 min CPU; with the reductions' outlier cap of
+        with 100 s (the reach 4.3 min wall; with the reductions' outlier cap of
         :mod:`reachconf_kernels.reduce_adaptive`); a disturbed oscillator over 1,000 s fails
         at t = 1.7 s with the whole horizon and takes 4.2 s CPU with 20 s,
         24 s with 100 s.  Reaches of at most 100 s are unchanged.
