@@ -59,7 +59,7 @@ from reachconf_kernels.nonlinear import (
     quadratic_error,
     row_radius,
 )
-from reachconf_kernels.reduce_adaptive import OUTLIER, reduce_adaptive
+from reachconf_kernels.reduce_adaptive import reduce_adaptive
 from reachconf_kernels.signatures import FN_IV_REMAINDER, FN_POINT_MAT, FN_POINT_T3, FN_POINT_VEC, f8_1, f8_2
 
 # return codes of adaptive_run (the step's own codes 1..4 come back in fail[0])
@@ -183,7 +183,7 @@ def error_floor(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, err_order, err_tol
         idx[i] = i
     for i in range(q):
         idx[n + i] = n + m + i
-    cr, Gr = reduce_adaptive(np.zeros(n), G, err_tol, err_order, 0, OUTLIER)
+    cr, Gr = reduce_adaptive(np.zeros(n), G, err_tol, err_order)
     cz, Gz = extend_with_disturbance(cr, Gr, WG, n, q, True)
     qc, qG = quadratic_error(cz, Gz, Hp, n, idx)
     return abs_bound(qc, qG) + out, 0

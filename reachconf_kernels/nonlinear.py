@@ -36,7 +36,7 @@ import numpy as np
 from numba import njit, types
 
 from reachconf_kernels import zonotope as Z
-from reachconf_kernels.reduce_adaptive import OUTLIER, reduce_adaptive
+from reachconf_kernels.reduce_adaptive import reduce_adaptive
 from reachconf_kernels.signatures import (
     FN_IV_REMAINDER,
     FN_POINT_MAT,
@@ -82,7 +82,7 @@ def _reduce(c, G, order, method):
 def _reduce_tol(c, G, order, method, tol, keep=0):
     """Fixed-order reduction (``tol <= 0``) or error-bounded reduction capped at ``order`` (first ``keep`` kept)."""
     if tol > 0.0:
-        return reduce_adaptive(c, G, tol, order, keep, OUTLIER)
+        return reduce_adaptive(c, G, tol, order, keep)
     return _reduce(c, G, order, method)
 
 

@@ -10,7 +10,7 @@ Hausdorff distance between the two is at most ``2 |sum_{j in S} (|g_j| -
 |g_j|_max e_(argmax))|_2`` — the box adds nothing along each generator's
 dominant axis.  Generators are boxed, lowest rank first, while this bound
 stays below ``tol`` times the diagonal of the zonotope's interval hull; a cap
-on the count keeps the cost bounded.  In the adaptive reach a state's radius
+on the count keeps the cost bounded.  A state's radius (by default)
 enters that diagonal at most as :data:`OUTLIER` times the median radius:
 without the cap a position thousands of metres wide (a straight road after an
 hour) let the reduction box away the lateral states' coupling, and a
@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 
 _EPS = 2.220446049250313e-16
-#: the adaptive reach's ``outlier`` cap: a state's radius counts in the tolerance's diagonal up to this many median radii
+#: the default ``outlier`` cap: a state's radius counts in the tolerance's diagonal up to this many median radii
 OUTLIER = 100.0
 
 
@@ -74,7 +74,7 @@ def _box_sorted(G, score, dom, boxed, box, dompart, dmax, keep, n_boxed):
 
 
 @njit(cache=True)
-def reduce_adaptive(c, G, tol, max_order, keep=0, outlier=0.0):
+def reduce_adaptive(c, G, tol, max_order, keep=0, outlier=OUTLIER):
     """Box the lowest-ranked generators while the Hausdorff bound stays below ``tol * diagonal``.
 
     Parameters
@@ -90,7 +90,7 @@ def reduce_adaptive(c, G, tol, max_order, keep=0, outlier=0.0):
     keep : int
         The first ``keep`` generators are never boxed (they stay the first
         columns, e.g. the images of the initial set's generators).
-    outlier : float
+    outlier : float, default OUTLIER
         If positive, a state's radius enters the diagonal at most as
         ``outlier`` times the median radius of the states: a state thousands
         of times wider than the others (a position that grows without bound
