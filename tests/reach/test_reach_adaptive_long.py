@@ -47,6 +47,18 @@ def test_a_reach_of_minutes_with_the_defaults_holds_every_sampled_trajectory(tub
         assert np.all(X >= lo - 1e-7) and np.all(X <= hi + 1e-7), k
         inside = np.array([sets[i].contains(X[i][None, :], tol=1e-7)[0] for i in range(0, TIMES.size, 20)])
         assert inside.all(), k
+    # the extreme trajectories: the disturbance at +-0.05 with the sign of the linear part's impulse response to p
+    # (resp. v) at the end (from the centre of X0, long forgotten); they are inside, and the reach is tight: the last box within 1.25x their extremes
+    wd, s = np.sqrt(1 - 1 / 16), T_END - fine
+    extreme = []
+    for h in (np.exp(-0.25 * s) * np.sin(wd * s) / wd, np.exp(-0.25 * s) * (np.cos(wd * s) - 0.25 / wd * np.sin(wd * s))):
+        for sign in (1.0, -1.0):
+            X = simulate(model, X0.center, fine, disturbances=(sign * 0.05 * np.sign(h))[:, None], substeps=20)[::4]
+            assert sets[-1].contains(X[-1][None, :], tol=1e-7)[0] and np.all(X[-1] <= hi[-1] + 1e-7)
+            extreme.append(X[-1])
+    reach = hi[-1] - lo[-1]
+    worst = np.array([extreme[0][0] - extreme[1][0], extreme[2][1] - extreme[3][1]])  # about 0.26 and 0.26
+    assert np.all(worst > 0.2) and np.all(reach <= 1.25 * worst), (reach, worst)
 
 
 def test_the_budget_over_the_whole_horizon_cannot_be_met():
