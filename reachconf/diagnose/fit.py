@@ -260,6 +260,7 @@ class FitResult:
     cov: dict = field(default_factory=dict)  # clustering -> (covariance of x, number of clusters)
     at_bound: tuple = ()  # labels of parameters ending at a bound
     spread: dict = field(default_factory=dict)  # (effect, target) -> per-group estimates (list of tuples)
+    influence: np.ndarray | None = None  # per training case (in order): its share of x's estimate error, B^-1 s_k
 
     def std(self, key, method: str = "case") -> tuple:
         """Standard deviations of the effect parameters of ``key``: robust (``"case"``, ``"group"``) or of the
@@ -293,10 +294,13 @@ class FitResult:
         return [(float(v - q * sd), float(v + q * sd)) for v, sd in zip(th, self.std(key, method))]
 
 
-def _robust_cov(J, r, n_data, blocks_by):
+def _robust_cov(J, r, n_data, blocks_by, influence=None):
     """Sandwich covariances ``B^-1 M B^-1`` (``B = J^T J`` incl. prior rows, ``M`` from cluster scores).
 
     ``blocks_by``: clustering name -> array of cluster ids per data residual (contiguous clusters).
+    ``influence`` (a dict, optional) receives, per clustering, each cluster's ``B^-1 s_k`` (``s_k``: its
+    score), whose sum is the estimate's first-order error: two fits on paired clusters give the paired
+    covariance of their difference (:func:`reachconf.diagnose.reference.parameter_change`).
     """
     B = J.T @ J
     Binv = np.linalg.pinv(B)
@@ -311,6 +315,8 @@ def _robust_cov(J, r, n_data, blocks_by):
         S = np.add.reduceat(Jd, first, axis=0)  # scores per cluster
         M = S.T @ S * C / (C - 1)
         out[name] = (Binv @ M @ Binv, int(C))
+        if influence is not None:
+            influence[name] = S @ Binv
     return out
 
 
@@ -394,9 +400,9 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
     case_ids = np.repeat(np.arange(len(train)), per_case)
     group_index = {g: i for i, g in enumerate(dict.fromkeys(d.group for d in train))}
     order = np.argsort([group_index[d.group] for d in train], kind="stable")
-    cov = {}
+    cov, infl = {}, {}
     try:
-        cov = _robust_cov(sol.jac, sol.fun, N, {"case": case_ids})
+        cov = _robust_cov(sol.jac, sol.fun, N, {"case": case_ids}, infl)
         if len(group_index) >= 2:
             # groups must be contiguous for the cluster sums: permute the residual rows case-wise
             rows = np.concatenate([np.arange(per_case[:i].sum(), per_case[: i + 1].sum()) for i in order])
@@ -415,7 +421,8 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
     tol = 1e-6 * np.where(np.isfinite(span), span, 1.0)
     at_bound = tuple(lab for lab, v, a, b, eps in zip(labels, sol.x, lo, hi, tol) if v - a <= eps or b - v <= eps)
     return FitResult(cand, m, dict(zip(fit_names, sol.x[:nb])), eff, std, float(np.mean(r**2)), bool(sol.success),
-                     sol.message, np.array(sol.x), tuple(labels), cov, at_bound)  # fmt: skip
+                     sol.message, np.array(sol.x), tuple(labels), cov, at_bound,
+                     influence=infl.get("case"))  # fmt: skip
 
 
 def _target_signal(model, e, tgt, data):

@@ -56,10 +56,10 @@ from reachconf.diagnose.howfar import (
 from reachconf.diagnose.locate import locate_gap
 from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.diagnose.probes import band_shares, separating_probe
-from reachconf.diagnose.reference import change_test, prepare_reference
+from reachconf.diagnose.reference import change_test, prepare_reference, shift_decision
 from reachconf.diagnose.report import GapReport
 from reachconf.diagnose.scales import case_layout, reweigh_factors
-from reachconf.diagnose.scoring import score_models
+from reachconf.diagnose.scoring import score_models, score_moved
 from reachconf.diagnose.select import (
     decide,
     fold_assignment,
@@ -242,8 +242,13 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     decision = decide(base_sc, models if changed else [], clusters, options, mimic=mimic,
                       spread=spread if change is None else None, reweigh=reweigh if change is None else None,
                       relevance_of=base_sc.total if change is not None else None)  # fmt: skip
-    if not changed:
-        decision["best"] = min(models, key=lambda m: m.total) if models else None
+    if not changed:  # the base sees no change; has an effect's reference fit moved? (reference.shift_decision)
+        score_moved(state, bar)  # the screened effects whose reference fit moved most, scored too
+        shift, change["shifts"] = shift_decision(base_sc, models, prepared, folds, clusters, scale, options, mimic)
+        if shift["status"] != "none":
+            decision, change["route"] = shift, "shift"
+        else:
+            decision["best"] = min(models, key=lambda m: m.total) if models else None
     decision["consistency"] = {label: {"spread": v["spread"], "sizes": {f"{e}({t})": x for (e, t), x in v["sizes"].items()}}
                                for label, v in spreads.items()}  # fmt: skip
     for label, res in mimics.items():

@@ -20,12 +20,14 @@ from __future__ import annotations
 from dataclasses import replace
 from itertools import combinations
 
-from reachconf.diagnose.fit import Candidate, fit_candidate
+import numpy as np
+
+from reachconf.diagnose.fit import Candidate, fit_candidate, window_residuals
 from reachconf.diagnose.reference import excess_scores
 from reachconf.diagnose.scales import case_weights, residual_scale
 from reachconf.diagnose.select import cross_fit, fold_start, paired_test
 
-__all__ = ["score_models"]
+__all__ = ["score_models", "score_moved"]
 
 
 def _start(fits, base_params=None):
@@ -46,6 +48,7 @@ class _Scorer:
         self.model, self.prepared, self.ref, self.folds = model, prepared, ref, folds
         self.sigma, self.fit_names, self.options, self.cache = sigma, fit_names, options, cache
         self.base_full, self.base_ref_full = base_full, base_ref_full
+        self.screen_ref = {}  # candidate keys -> the reference's screening fit
 
     def cross(self, cand, start):
         sc = cross_fit(self.model, cand, self.prepared, self.folds, self.sigma, self.fit_names, self.options,
@@ -66,7 +69,15 @@ class _Scorer:
             return f, f.train_cost
         fr = fit_candidate(self.base_ref_full.model, cand, self.ref, self.sigma, (), self.options, self.cache,
                            start=ref_start, max_nfev=20)  # fmt: skip
+        self.screen_ref[cand.keys] = fr
         return f, f.train_cost - fr.train_cost
+
+    def moved(self, f) -> float:
+        """How much worse the reference's screening fit of ``f``'s candidate predicts the suite's training
+        windows than ``f`` (the suite's): how far the effect moved (mean squared normalised residual)."""
+        fr = self.screen_ref[f.candidate.keys]
+        r = window_residuals(fr.model, fr.candidate, fr.effect_params, self.prepared, self.sigma, self.options.substeps)
+        return float(np.mean(r**2)) - f.train_cost
 
 
 def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names, options, cache, bar, state,
@@ -99,6 +110,7 @@ def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names,
         base_ref_full = fit_candidate(model, Candidate(()), ref, sigma, fit_names, options, cache,
                                       start=dict(base_full.base_params))  # fmt: skip
     sc = _Scorer(model, prepared, ref, folds, sigma, fit_names, options, cache, base_full, base_ref_full)
+    state["scorer"] = sc
     base = cross_fit(model, Candidate(()), prepared, folds, sigma, fit_names, options, cache,
                      start=dict(base_full.base_params))  # fmt: skip
     if ref is not None:
@@ -145,6 +157,27 @@ def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names,
                                 and paired_test(ranked[0].losses, m.losses, clusters)["z"] < options.z_separate][:1]
         for first in firsts:
             _next_to(first, sc, candidates, bar, models)
+
+
+def score_moved(state, bar=None) -> list:
+    """With a reference run: cross-fit the screened single effects not scored yet whose reference fit moved
+    most (:meth:`_Scorer.moved`), the best ``screen`` of them, into ``state["models"]``; returns them.
+
+    The screen ranks by how much more an effect lowers the loss on the suite than on the reference, which
+    misses an effect that moved towards zero (it lowers the suite's loss *less*);
+    :func:`reachconf.diagnose.reference.shift_decision` needs those scored too.
+    """
+    sc, models = state["scorer"], state["models"]
+    have = {m.candidate.keys for m in models}
+    rest = [f for f in state["screen"] if f.candidate.keys not in have and f.candidate.keys in sc.screen_ref]
+    rest.sort(key=lambda f: -sc.moved(f))
+    new = []
+    for f in rest[: sc.options.screen]:
+        if bar is not None:
+            bar.set_postfix_str(f"moved? {f.candidate.label}")
+        new.append(sc.cross(f.candidate, {**sc.base_full.base_params, **f.effect_params}))
+    models.extend(new)
+    return new
 
 
 def _next_to(first, sc, candidates, bar, models):

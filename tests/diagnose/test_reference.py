@@ -62,7 +62,61 @@ def test_no_change_against_the_reference_names_nothing():
                       reference=_suite(noise_seed=1))  # fmt: skip
     assert rep.status == "none" and rep.named == []
     assert rep.verdict.startswith("no change against the reference run")
-    assert rep.decision["reference"]["z"] < OPTS.z_name
+    ref = rep.decision["reference"]
+    assert ref["z"] < OPTS.z_name and "route" not in ref
+    # no effect moved either: the paired parameter changes are noise (other noise, same inputs)
+    assert len(ref["shifts"]) >= 3 and all(abs(s["z_change"]) < OPTS.z_name for s in ref["shifts"].values())
+
+
+def test_an_effect_that_moves_without_raising_the_misfit_is_named_against_a_reference_run():
+    """The reference has a sensor bias of its own (+0.04); in the suite it moved to -0.01.  The base model's
+    misfit *falls* (no change by its excess), but the bias's reference fit predicts the suite worse, and its
+    paired parameter change is significant: named, with the suite's value; the reference's is recorded."""
+    suite, ref = _suite(bias=-0.01, noise_seed=2), _suite(bias=0.04, noise_seed=1)
+    rep = rc.diagnose(MODEL, suite, effects=EFFECTS, progress=False, options=OPTS, reference=ref)
+    rec = rep.decision["reference"]
+    assert rec["z"] < OPTS.z_name and rec["share"] < 0  # the base sees no rise of its misfit
+    assert rec["route"] == "shift" and rep.status == "named", rep.verdict
+    assert [(e["effect"], e["target"]) for e in rep.named] == [("output_offset", "v")]
+    assert rep.named[0]["params"]["c"] == pytest.approx(-0.01, abs=0.005)
+    moved = rec["shifts"]["output_offset(v)"]
+    assert moved["reference_params"]["c"] == pytest.approx(0.04, abs=0.005)
+    assert moved["z_change"] >= OPTS.z_name and moved["frozen_excess"] > 0 and moved["test"]["gain"] > 0.8
+    assert rep.verdict.startswith("against the reference run") and "output_offset(v) moved" in rep.verdict
+    # the same suite without the bias change: nothing moved, nothing named
+    same = rc.diagnose(MODEL, _suite(bias=0.04, noise_seed=2), effects=EFFECTS, progress=False, options=OPTS,
+                       reference=ref)  # fmt: skip
+    assert same.status == "none" and same.verdict.startswith("no change against the reference run")
+
+
+def test_the_parameter_change_is_paired_by_case():
+    """Two fits on paired cases: what the cases share (here the cubic spring's misfit, the same inputs) cancels
+    in the change's standard error — a shift of the same recording is exact, and with other noise the error
+    is the noise's, well below the root sum of squares of the two fits' own std (which hold the misfit)."""
+    from reachconf.diagnose.fit import Candidate, prepare
+    from reachconf.diagnose.reference import parameter_change
+    from reachconf.diagnose.select import Scored, cross_fit, fold_assignment
+
+    from reachconf.diagnose.effects import EFFECTS as REGISTRY
+
+    cand = Candidate(((REGISTRY["output_offset"], "v"),))
+    sigma = np.array([0.002, 0.002])
+
+    def scored(suite):
+        data = [prepare(MODEL, c, OPTS) for c in suite]
+        folds = fold_assignment([d.group for d in data], 3, 0)
+        return cross_fit(MODEL, cand, data, folds, sigma, ("k", "d"), OPTS, {})
+
+    a = scored(_suite(bias=0.01, noise_seed=1))
+    same_noise = scored(_suite(bias=0.013, noise_seed=1))  # the same recording, shifted by 0.003
+    other_noise = scored(_suite(bias=0.01, noise_seed=2))  # no change, other noise
+    z_same = parameter_change(Scored(cand, same_noise.losses, same_noise.folds, ref=a))
+    z_other = parameter_change(Scored(cand, other_noise.losses, other_noise.folds, ref=a))
+    assert z_same > 100 and z_other < 3
+    sd = np.mean([f.effect_std[("output_offset", "v")][0] for f in a.folds])
+    delta = abs(np.mean([f.effect_params[("output_offset", "v")][0] for f in other_noise.folds])
+                - np.mean([f.effect_params[("output_offset", "v")][0] for f in a.folds]))  # fmt: skip
+    assert z_other > 3 * delta / (np.sqrt(2) * sd)
 
 
 def test_a_reference_must_hold_the_same_cases():
