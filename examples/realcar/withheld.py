@@ -23,6 +23,7 @@ injection are diagnosed and judged::
 
     python examples/realcar/withheld.py --data ../shared/data/realcar --out DIR [--loss-scale sensor]
         [--only yaw_bias ax_scale] [--value yaw_bias=0.02] [--stop 120] [--signal-only] [--stage2] [--reference]
+        [--reference-loss difference]
 
 writes ``DIR/withheld.json`` and ``DIR/withheld.md``.  With ``--stage2`` (the
 two-stage workflow of ``adopt.py``), the clean run's findings are adopted into
@@ -170,6 +171,8 @@ def main(argv=None):
     ap.add_argument("--value", action="append", default=[], help="NAME=VALUE: another injected value")
     ap.add_argument("--loss-scale", default=None, choices=("sensor", "residual", "case"),
                     help="DiagnoseOptions.loss_scale (default: the library's default)")
+    ap.add_argument("--reference-loss", default=None, choices=("excess", "difference"),
+                    help="DiagnoseOptions.reference_loss (with --reference; default: the library's default)")
     ap.add_argument("--stop", type=float, default=None, help="only the first STOP seconds of the run")
     ap.add_argument("--signal-only", action="store_true", help="signal candidates only (no tyre models)")
     ap.add_argument("--stage2", action="store_true",
@@ -187,7 +190,8 @@ def main(argv=None):
     stop = None if args.stop is None else cols["t"][0] + args.stop
     half = np.array([h for _, h in noise_V(cols).values()])
     V = rc.Interval(-half, half)
-    opts = rc.DiagnoseOptions(**({"loss_scale": args.loss_scale} if args.loss_scale else {}))
+    opts = rc.DiagnoseOptions(**({"loss_scale": args.loss_scale} if args.loss_scale else {}),
+                              **({"reference_loss": args.reference_loss} if args.reference_loss else {}))
     effects = SIGNAL_CANDIDATES if args.signal_only else CANDIDATES
 
     def diag(c, reference=None):

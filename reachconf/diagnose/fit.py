@@ -182,7 +182,11 @@ def _states(model, Ys, U, direct):
 def window_residuals(model, cand: Candidate, theta_eff: dict, data, sigma, substeps):
     """Normalised multi-step prediction residuals of all windows of all cases (one flat array).
 
-    Window after window (each ``length x p`` values), case after case.
+    Window after window (each ``length x p`` values), case after case.  An
+    output effect corrects the measured start state (its inverse) and passes
+    the prediction through itself: the residual stays in measurement units,
+    so that an output scale cannot lower the loss by shrinking the residuals
+    (``y / k - y_pred`` would, by ``1/k``).
     """
     comp = model.compiled()
     pv = model.param_vector
@@ -199,17 +203,20 @@ def window_residuals(model, cand: Candidate, theta_eff: dict, data, sigma, subst
                 j = model.input_names.index(tgt)
                 U[:, j] = e.apply_signal(d.t, U[:, j], theta_eff[(e.name, tgt)])
         Ym, Y0 = d.Y[d.idx], d.Ys[d.starts]
-        if outputs:
-            Ym, Y0 = Ym.copy(), Y0.copy()
+        if outputs:  # the start state from the corrected measurement, the residual in measurement units
+            Y0 = Y0.copy()
             for e, tgt in outputs:
                 i = model.output_names.index(tgt)
-                th = theta_eff[(e.name, tgt)]
-                Ym[:, i] = e.inverse(Ym[:, i], th)
-                Y0[:, i] = e.inverse(Y0[:, i], th)
+                Y0[:, i] = e.inverse(Y0[:, i], theta_eff[(e.name, tgt)])
         X0 = _states(model, Y0, U[d.starts], direct)
         P = rk4_windows(comp.f, np.ascontiguousarray(X0), d.starts, U, d.t, pv, model.q, d.length, int(substeps))
         Xp = P[:, d.offsets - 1, :].reshape(-1, model.n)
         Yp = Xp[:, plain] if plain is not None else evaluate_outputs(model, Xp, U[d.idx])
+        if outputs:
+            Yp = Yp.copy()
+            for e, tgt in outputs:
+                i = model.output_names.index(tgt)
+                Yp[:, i] = e.apply_signal(d.t[d.idx], Yp[:, i], theta_eff[(e.name, tgt)])
         if not np.all(np.isfinite(Yp)):
             Yp = np.where(np.isfinite(Yp), Yp, 1e6)
         out.append(((Yp - Ym) * (d.weight / sigma)).reshape(-1))
@@ -260,7 +267,6 @@ class FitResult:
     cov: dict = field(default_factory=dict)  # clustering -> (covariance of x, number of clusters)
     at_bound: tuple = ()  # labels of parameters ending at a bound
     spread: dict = field(default_factory=dict)  # (effect, target) -> per-group estimates (list of tuples)
-    influence: np.ndarray | None = None  # per training case (in order): its share of x's estimate error, B^-1 s_k
 
     def std(self, key, method: str = "case") -> tuple:
         """Standard deviations of the effect parameters of ``key``: robust (``"case"``, ``"group"``) or of the
@@ -294,13 +300,10 @@ class FitResult:
         return [(float(v - q * sd), float(v + q * sd)) for v, sd in zip(th, self.std(key, method))]
 
 
-def _robust_cov(J, r, n_data, blocks_by, influence=None):
+def _robust_cov(J, r, n_data, blocks_by):
     """Sandwich covariances ``B^-1 M B^-1`` (``B = J^T J`` incl. prior rows, ``M`` from cluster scores).
 
     ``blocks_by``: clustering name -> array of cluster ids per data residual (contiguous clusters).
-    ``influence`` (a dict, optional) receives, per clustering, each cluster's ``B^-1 s_k`` (``s_k``: its
-    score), whose sum is the estimate's first-order error: two fits on paired clusters give the paired
-    covariance of their difference (:func:`reachconf.diagnose.reference.parameter_change`).
     """
     B = J.T @ J
     Binv = np.linalg.pinv(B)
@@ -315,13 +318,11 @@ def _robust_cov(J, r, n_data, blocks_by, influence=None):
         S = np.add.reduceat(Jd, first, axis=0)  # scores per cluster
         M = S.T @ S * C / (C - 1)
         out[name] = (Binv @ M @ Binv, int(C))
-        if influence is not None:
-            influence[name] = S @ Binv
     return out
 
 
 def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: DiagnoseOptions, cache: dict,
-                  start: dict | None = None, max_nfev: int = 60) -> FitResult:  # fmt: skip
+                  start: dict | None = None, max_nfev: int = 60, target=None) -> FitResult:  # fmt: skip
     """Least-squares fit of the candidate's parameters jointly with the base parameters ``fit_names``.
 
     ``start`` (optional) holds starting values: base parameter names and
@@ -329,6 +330,10 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
     values of ``base``.  The covariance of the result is the cluster-robust
     sandwich (clusters: cases and groups of ``train``), which holds also when
     the windows' errors are correlated and the model is misspecified.
+    ``target`` (optional, laid out as :func:`window_residuals` of ``train``):
+    fit the residuals to it instead of to zero — with a reference run, the
+    reference fit's residuals on the paired cases, so that the fit explains
+    the change between the recordings (``reference_loss="difference"``).
     """
     from scipy.optimize import least_squares
 
@@ -370,6 +375,8 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
     def fun(x):
         m, eff = unpack(x)
         r = window_residuals(m, cand, eff, train, sigma, options.substeps)
+        if target is not None:
+            r = r - target
         n_data[0] = r.size
         prior = (x[:nb] - nominal) / (options.prior * scale) * np.sqrt(r.size)
         return np.concatenate([r, prior])
@@ -400,9 +407,9 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
     case_ids = np.repeat(np.arange(len(train)), per_case)
     group_index = {g: i for i, g in enumerate(dict.fromkeys(d.group for d in train))}
     order = np.argsort([group_index[d.group] for d in train], kind="stable")
-    cov, infl = {}, {}
+    cov = {}
     try:
-        cov = _robust_cov(sol.jac, sol.fun, N, {"case": case_ids}, infl)
+        cov = _robust_cov(sol.jac, sol.fun, N, {"case": case_ids})
         if len(group_index) >= 2:
             # groups must be contiguous for the cluster sums: permute the residual rows case-wise
             rows = np.concatenate([np.arange(per_case[:i].sum(), per_case[: i + 1].sum()) for i in order])
@@ -421,8 +428,7 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
     tol = 1e-6 * np.where(np.isfinite(span), span, 1.0)
     at_bound = tuple(lab for lab, v, a, b, eps in zip(labels, sol.x, lo, hi, tol) if v - a <= eps or b - v <= eps)
     return FitResult(cand, m, dict(zip(fit_names, sol.x[:nb])), eff, std, float(np.mean(r**2)), bool(sol.success),
-                     sol.message, np.array(sol.x), tuple(labels), cov, at_bound,
-                     influence=infl.get("case"))  # fmt: skip
+                     sol.message, np.array(sol.x), tuple(labels), cov, at_bound)  # fmt: skip
 
 
 def _target_signal(model, e, tgt, data):
@@ -438,10 +444,15 @@ def _target_signal(model, e, tgt, data):
 def window_losses(fit: FitResult, data, sigma, options: DiagnoseOptions) -> np.ndarray:
     """Sum of squared normalised residuals of every prediction window of ``data`` (cases in order)."""
     r = window_residuals(fit.model, fit.candidate, fit.effect_params, data, sigma, options.substeps)
-    sizes = np.concatenate([np.full(d.starts.size, d.per_window * len(sigma)) for d in data])
+    return window_sums(r**2, data, len(sigma))
+
+
+def window_sums(values, data, p: int) -> np.ndarray:
+    """Sums of per-residual ``values`` (laid out as :func:`window_residuals`) over every window of ``data``."""
+    sizes = np.concatenate([np.full(d.starts.size, d.per_window * p) for d in data])
     if sizes.size and np.all(sizes == sizes[0]):
-        return np.sum(r.reshape(-1, int(sizes[0])) ** 2, axis=1)
-    return np.add.reduceat(r**2, np.concatenate([[0], np.cumsum(sizes)[:-1]]))
+        return np.sum(values.reshape(-1, int(sizes[0])), axis=1)
+    return np.add.reduceat(values, np.concatenate([[0], np.cumsum(sizes)[:-1]]))
 
 
 def prediction_cost(fit: FitResult, data, sigma, options: DiagnoseOptions) -> float:

@@ -56,10 +56,10 @@ from reachconf.diagnose.howfar import (
 from reachconf.diagnose.locate import locate_gap
 from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.diagnose.probes import band_shares, separating_probe
-from reachconf.diagnose.reference import change_test, prepare_reference, shift_decision
+from reachconf.diagnose.reference import change_test, prepare_reference
 from reachconf.diagnose.report import GapReport
 from reachconf.diagnose.scales import case_layout, reweigh_factors
-from reachconf.diagnose.scoring import score_models, score_moved
+from reachconf.diagnose.scoring import score_models
 from reachconf.diagnose.select import (
     decide,
     fold_assignment,
@@ -153,11 +153,13 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         named model (``before_after["W_reachset"]``); slower.
     reference : TestSuite, iterable of TestCase or path of a suite folder, optional
         The same cases (same order and sample times) recorded without the
-        change: the effect named is then the one that explains how the suite's
-        misfit exceeds the reference's (:mod:`reachconf.diagnose.reference`;
-        ``decision["reference"]`` holds the excess and its z).  Every scored
-        model is also fitted on the reference, which doubles the time of the
-        *which* step.
+        change: the effect named is then the one that explains how the suite
+        differs from it (:mod:`reachconf.diagnose.reference`; by default the
+        difference of the two recordings' residuals,
+        ``options.reference_loss``; ``decision["reference"]`` holds the base
+        model's excess misfit over the reference, its z and the difference
+        loss).  Every scored model is also fitted on the reference, which
+        doubles the time of the *which* step.
 
     Returns
     -------
@@ -207,7 +209,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
             raise
         interrupted = True
     base_full, base_sc, models, screen = state["base_full"], state["base"], state["models"], state["screen"]
-    # the suite's own held-out loss of the base (with a reference, base_sc holds the excess over it)
+    # the suite's own held-out loss of the base (with a reference, base_sc holds its loss of the change)
     base_total = state["base_suite"].total if ref_prepared is not None else base_sc.total
     scale = state["scale"]  # the loss scale of every fit (sigma: the sensor noise, for V and the probes)
     timings["which"] = time.process_time() - c_start - sum(timings.values())
@@ -238,17 +240,18 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
 
     # with a reference run the excess over it decides (reference.py): is there a change at all?
     change = change_test(state["base_suite"], state["base_ref"], clusters) if ref_prepared is not None else None
-    changed = change is None or change["z"] >= options.z_name
-    decision = decide(base_sc, models if changed else [], clusters, options, mimic=mimic,
+    # (with reference_loss="difference" every model is scored by what it leaves of the change: decide on it; the
+    # mimic check guards against effects that absorb the base's own misfit differently, which cancels there)
+    difference = change is not None and options.reference_loss == "difference"
+    changed = change is None or change["z"] >= options.z_name or difference
+    decision = decide(base_sc, models if changed else [], clusters, options, mimic=None if difference else mimic,
                       spread=spread if change is None else None, reweigh=reweigh if change is None else None,
                       relevance_of=base_sc.total if change is not None else None)  # fmt: skip
-    if not changed:  # the base sees no change; has an effect's reference fit moved? (reference.shift_decision)
-        score_moved(state, bar)  # the screened effects whose reference fit moved most, scored too
-        shift, change["shifts"] = shift_decision(base_sc, models, prepared, folds, clusters, scale, options, mimic)
-        if shift["status"] != "none":
-            decision, change["route"] = shift, "shift"
-        else:
-            decision["best"] = min(models, key=lambda m: m.total) if models else None
+    if change is not None:
+        change["loss"] = options.reference_loss
+        change["difference_loss"] = base_sc.total if options.reference_loss == "difference" else None
+    if not changed:
+        decision["best"] = min(models, key=lambda m: m.total) if models else None
     decision["consistency"] = {label: {"spread": v["spread"], "sizes": {f"{e}({t})": x for (e, t), x in v["sizes"].items()}}
                                for label, v in spreads.items()}  # fmt: skip
     for label, res in mimics.items():

@@ -71,9 +71,11 @@ class GapReport(JsonResult):
         ``data_band_shares``), ``admissible``, ``tests``, ``thresholds``;
         with a reference run (``diagnose(..., reference=)``) also
         ``reference``: ``excess_loss``, ``share`` (of the suite's base loss)
-        and ``z`` of the base model's excess misfit over it — the shares in
-        ``tests`` and the ranked entries' ``prediction_gain`` are then of that
-        excess.
+        and ``z`` of the base model's excess misfit over it, ``loss``
+        (``options.reference_loss``) and ``difference_loss`` (the base's
+        squared residual difference, with ``"difference"``) — the shares in
+        ``tests`` and the ranked entries' ``prediction_gain`` are then of the
+        base's loss of the change.
     """
 
     where: dict

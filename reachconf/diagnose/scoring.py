@@ -8,11 +8,12 @@ every (effect, target) by a fit of its own parameters, cross-fits the best
 candidates screened again next to the best single effect (``pair_next``).
 
 With a reference run (:mod:`reachconf.diagnose.reference`) every model is
-cross-fitted on the reference cases too and scored by its *excess* loss over
-them, and the screens are ranked by how much more a candidate lowers the
-training loss on the suite than on the reference: the candidates that explain
-the change are the ones carried forward, not those that absorb the base
-model's misfit common to both recordings.
+cross-fitted on the reference cases too and scored by what it leaves of the
+change (``reference_loss``: the difference of its residuals on the two
+recordings, its suite fit made to match its reference fit's residuals; or
+its *excess* loss), and the screens are ranked the same way: the candidates
+that explain the change are the ones carried forward, not those that absorb
+the base model's misfit common to both recordings.
 """
 
 from __future__ import annotations
@@ -23,11 +24,11 @@ from itertools import combinations
 import numpy as np
 
 from reachconf.diagnose.fit import Candidate, fit_candidate, window_residuals
-from reachconf.diagnose.reference import excess_scores
+from reachconf.diagnose.reference import difference_scores, excess_scores
 from reachconf.diagnose.scales import case_weights, residual_scale
 from reachconf.diagnose.select import cross_fit, fold_start, paired_test
 
-__all__ = ["score_models", "score_moved"]
+__all__ = ["score_models"]
 
 
 def _start(fits, base_params=None):
@@ -42,42 +43,60 @@ def _start(fits, base_params=None):
 
 
 class _Scorer:
-    """Cross-fits and screens on the suite, and with a reference also on it (excess losses, differential screens)."""
+    """Cross-fits and screens on the suite, and with a reference also on it (losses of the change, screens of it)."""
 
     def __init__(self, model, prepared, ref, folds, sigma, fit_names, options, cache, base_full, base_ref_full):
         self.model, self.prepared, self.ref, self.folds = model, prepared, ref, folds
         self.sigma, self.fit_names, self.options, self.cache = sigma, fit_names, options, cache
         self.base_full, self.base_ref_full = base_full, base_ref_full
-        self.screen_ref = {}  # candidate keys -> the reference's screening fit
 
     def cross(self, cand, start):
-        sc = cross_fit(self.model, cand, self.prepared, self.folds, self.sigma, self.fit_names, self.options,
-                       self.cache, start=start)  # fmt: skip
         if self.ref is None:
-            return sc
+            return cross_fit(self.model, cand, self.prepared, self.folds, self.sigma, self.fit_names, self.options,
+                             self.cache, start=start)  # fmt: skip
         # the effects start from their own guesses (or start grids) on the reference, not from the suite's values:
         # a fit stuck near the suite's value would understate what the effect can remove there
         on_ref = cross_fit(self.model, cand, self.ref, self.folds, self.sigma, self.fit_names, self.options,
                            self.cache, start=dict(self.base_ref_full.base_params))  # fmt: skip
+        sc = cross_fit(self.model, cand, self.prepared, self.folds, self.sigma, self.fit_names, self.options,
+                       self.cache, start=start, targets=self.targets(on_ref))  # fmt: skip
+        return self.paired(sc, on_ref)
+
+    def targets(self, on_ref):
+        """With ``reference_loss="difference"``: per fold, the reference fit's residuals on the paired training
+        cases (the suite's fit explains the change); else None."""
+        if self.options.reference_loss != "difference":
+            return None
+        out = []
+        for f, fr in enumerate(on_ref.folds):
+            train = [r for r, g in zip(self.ref, self.folds) if g != f]
+            out.append(window_residuals(fr.model, fr.candidate, fr.effect_params, train, self.sigma,
+                                        self.options.substeps))  # fmt: skip
+        return out
+
+    def paired(self, sc, on_ref):
+        """The suite's and the reference's scoring of one model combined (``options.reference_loss``)."""
+        if self.options.reference_loss == "difference":
+            return difference_scores(sc, on_ref, self.prepared, self.ref, self.folds, self.sigma, self.options)
         return excess_scores(sc, on_ref)
 
     def screen(self, cand, start=None, ref_start=None):
         """A screening fit (effect parameters only, the base's fixed) and its ranking key."""
-        f = fit_candidate(self.base_full.model, cand, self.prepared, self.sigma, (), self.options, self.cache,
-                          start=start, max_nfev=20)  # fmt: skip
         if self.ref is None:
+            f = fit_candidate(self.base_full.model, cand, self.prepared, self.sigma, (), self.options, self.cache,
+                              start=start, max_nfev=20)  # fmt: skip
             return f, f.train_cost
         fr = fit_candidate(self.base_ref_full.model, cand, self.ref, self.sigma, (), self.options, self.cache,
                            start=ref_start, max_nfev=20)  # fmt: skip
-        self.screen_ref[cand.keys] = fr
+        if self.options.reference_loss == "difference":  # the suite's fit explains the change: what it leaves
+            o = self.options
+            rr = window_residuals(fr.model, cand, fr.effect_params, self.ref, self.sigma, o.substeps)
+            f = fit_candidate(self.base_full.model, cand, self.prepared, self.sigma, (), o, self.cache, start=start,
+                              max_nfev=20, target=rr)  # fmt: skip
+            return f, f.train_cost
+        f = fit_candidate(self.base_full.model, cand, self.prepared, self.sigma, (), self.options, self.cache,
+                          start=start, max_nfev=20)  # fmt: skip
         return f, f.train_cost - fr.train_cost
-
-    def moved(self, f) -> float:
-        """How much worse the reference's screening fit of ``f``'s candidate predicts the suite's training
-        windows than ``f`` (the suite's): how far the effect moved (mean squared normalised residual)."""
-        fr = self.screen_ref[f.candidate.keys]
-        r = window_residuals(fr.model, fr.candidate, fr.effect_params, self.prepared, self.sigma, self.options.substeps)
-        return float(np.mean(r**2)) - f.train_cost
 
 
 def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names, options, cache, bar, state,
@@ -88,7 +107,7 @@ def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names,
     pairs), ``screen`` (screening fits), ``scale`` (the loss scale per channel:
     ``sigma`` or, with ``loss_scale="residual"``, the base's misfit); with
     ``ref`` (prepared reference cases) also ``base_suite`` and ``base_ref``
-    (the base scored on each), and ``base``/``models`` hold excess losses.
+    (the base scored on each), and ``base``/``models`` hold losses of the change (``reference_loss``).
     With ``loss_scale="case"`` the cases of ``prepared`` (and ``ref``, with the
     same weights) are replaced in place by copies carrying their weights.
     """
@@ -117,7 +136,10 @@ def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names,
         state["base_suite"] = base
         state["base_ref"] = cross_fit(model, Candidate(()), ref, folds, sigma, fit_names, options, cache,
                                       start=dict(base_ref_full.base_params))  # fmt: skip
-        base = excess_scores(base, state["base_ref"])
+        if options.reference_loss == "difference":  # the base fitted to explain the change, as every model
+            base = cross_fit(model, Candidate(()), prepared, folds, sigma, fit_names, options, cache,
+                             start=dict(base_full.base_params), targets=sc.targets(state["base_ref"]))  # fmt: skip
+        base = sc.paired(base, state["base_ref"])
     state["base"] = base
     bar.update(1)
     screen, keys = state["screen"], []
@@ -157,27 +179,6 @@ def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names,
                                 and paired_test(ranked[0].losses, m.losses, clusters)["z"] < options.z_separate][:1]
         for first in firsts:
             _next_to(first, sc, candidates, bar, models)
-
-
-def score_moved(state, bar=None) -> list:
-    """With a reference run: cross-fit the screened single effects not scored yet whose reference fit moved
-    most (:meth:`_Scorer.moved`), the best ``screen`` of them, into ``state["models"]``; returns them.
-
-    The screen ranks by how much more an effect lowers the loss on the suite than on the reference, which
-    misses an effect that moved towards zero (it lowers the suite's loss *less*);
-    :func:`reachconf.diagnose.reference.shift_decision` needs those scored too.
-    """
-    sc, models = state["scorer"], state["models"]
-    have = {m.candidate.keys for m in models}
-    rest = [f for f in state["screen"] if f.candidate.keys not in have and f.candidate.keys in sc.screen_ref]
-    rest.sort(key=lambda f: -sc.moved(f))
-    new = []
-    for f in rest[: sc.options.screen]:
-        if bar is not None:
-            bar.set_postfix_str(f"moved? {f.candidate.label}")
-        new.append(sc.cross(f.candidate, {**sc.base_full.base_params, **f.effect_params}))
-    models.extend(new)
-    return new
 
 
 def _next_to(first, sc, candidates, bar, models):

@@ -52,7 +52,6 @@ class Scored:
     losses: np.ndarray
     folds: list = field(default_factory=list)  # FitResult per fold (trained without that fold)
     bound: tuple | None = None  # effect parameters at a bound, when known without the fold fits (stored results)
-    ref: Scored | None = None  # with a reference run: the same candidate cross-fitted on the reference cases
 
     @property
     def label(self) -> str:
@@ -129,17 +128,20 @@ def paired_test(losses_a, losses_b, clusters) -> dict:
             "clusters": int(C)}  # fmt: skip
 
 
-def cross_fit(base_model, cand: Candidate, data, folds, sigma, fit_names, options, cache, start=None) -> Scored:
+def cross_fit(base_model, cand: Candidate, data, folds, sigma, fit_names, options, cache, start=None,
+              targets=None) -> Scored:  # fmt: skip
     """Fit ``cand`` on all folds but one, predict the left-out fold; for each fold.
 
-    ``start``: one dict of starting values for every fold, or a list with one per fold.
+    ``start``: one dict of starting values for every fold, or a list with one per fold.  ``targets``: per fold,
+    the residuals the training cases are fitted to (:func:`reachconf.diagnose.fit.fit_candidate`), or None.
     """
     k = int(folds.max()) + 1
     fits = []
     for f in range(k):
         train = [d for d, g in zip(data, folds) if g != f]
         st = start[f] if isinstance(start, list) else start
-        fits.append(fit_candidate(base_model, cand, train, sigma, fit_names, options, cache, start=st))
+        tg = targets[f] if targets is not None else None
+        fits.append(fit_candidate(base_model, cand, train, sigma, fit_names, options, cache, start=st, target=tg))
     losses = held_out_losses(fits, data, folds, sigma, options)
     return Scored(cand, losses, fits)
 
@@ -147,8 +149,7 @@ def cross_fit(base_model, cand: Candidate, data, folds, sigma, fit_names, option
 def held_out_losses(fits, data, folds, sigma, options) -> np.ndarray:
     """Per-window losses of ``data`` (cases in order), each case predicted by the fit of its fold ``fits[folds[i]]``.
 
-    The fits need not come from ``data``: with a reference run, the reference's fold fits predict the suite's
-    windows (:func:`reachconf.diagnose.reference.frozen_excess`).
+    The fits need not come from ``data`` (any fits with the fold layout of ``folds``).
     """
     counts = np.array([d.starts.size for d in data])
     first = np.concatenate([[0], np.cumsum(counts)])
@@ -164,20 +165,18 @@ def held_out_losses(fits, data, folds, sigma, options) -> np.ndarray:
 
 
 def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, spread=None, reweigh=None,
-                relevance_of=None, against=None) -> tuple:  # fmt: skip
+                relevance_of=None) -> tuple:  # fmt: skip
     """(admissible, tests): a one-effect model against the base, a two-effect model against each of its parts.
 
     ``spread(m)``: the relative spread of ``m``'s effects across groups (or None), asked only when a
     significant gain is below ``min_improvement`` but at least ``consistent_gain``.  ``reweigh(r)``: per-window
     factors of the losses when a two-effect model is tested against its part ``r`` (or None: unchanged).
-    ``relevance_of``: the loss the relevance shares are taken of (None: the loss of the model tested against).
-    ``against``: label -> ``(Scored, z)``: what a one-effect model is tested against instead of the base, and
-    the z that decides significance (None: the paired test's)."""
+    ``relevance_of``: the loss the relevance shares are taken of (None: the loss of the model tested against)."""
     keys = m.candidate.keys
     if m.at_bound:  # the data push the effect past its plausible range: it stands in for something else
         return False, [{"against": "bounds", "at_bound": list(m.at_bound)}]
     if len(keys) == 1:
-        refs = [against[m.label][0] if against is not None else base]
+        refs = [base]
     else:
         refs = [singles.get(frozenset({k})) for k in keys]
         if any(r is None for r in refs):
@@ -188,9 +187,7 @@ def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, sprea
         f = reweigh(r) if reweigh is not None and len(keys) > 1 else None
         t = paired_test(m.losses, r.losses, clusters) if f is None else paired_test(m.losses * f, r.losses * f, clusters)
         t["against"] = r.label
-        if against is not None and len(keys) == 1 and against[m.label][1] is not None:
-            t.update(z_loss=t["z"], z=against[m.label][1])  # significance from another test (of the parameter)
-        if relevance_of is not None:  # the share of a fixed loss (the base's excess over a reference run)
+        if relevance_of is not None:  # the share of a fixed loss (the base's loss of a reference run's change)
             t["gain"] = t["removed"] / relevance_of  # (also when the part's own excess is <= 0)
         tests.append(t)
         relevant = t["gain"] >= options.min_improvement
@@ -203,7 +200,7 @@ def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, sprea
 
 
 def decide(base: Scored, models: list, clusters, options, mimic=None, spread=None, reweigh=None,
-           relevance_of=None, against=None) -> dict:  # fmt: skip
+           relevance_of=None) -> dict:  # fmt: skip
     """The naming rule (module docstring) on scored models.
 
     Parameters
@@ -233,15 +230,8 @@ def decide(base: Scored, models: list, clusters, options, mimic=None, spread=Non
         The loss of which every relevance share is taken (``min_improvement``,
         ``consistent_gain``); None: the loss of the model tested against.  With a
         reference run (:mod:`reachconf.diagnose.reference`) it is the base
-        model's excess, so that a second effect must explain a share of the
+        model's loss of the change, so that a second effect must explain a share of the
         change itself, not of what the first effect left of it (near zero).
-    against : dict, optional
-        Label -> ``(Scored, z)``: what each one-effect model is tested
-        against instead of ``base`` (relevance, and significance unless
-        ``z`` is given: then ``z`` decides it); with a reference run whose
-        base model sees no change, each effect's reference fit predicting
-        the suite and the z of its parameter's change
-        (:func:`reachconf.diagnose.reference.shift_decision`).
 
     Returns
     -------
@@ -257,7 +247,7 @@ def decide(base: Scored, models: list, clusters, options, mimic=None, spread=Non
     singles = {m.candidate.keys: m for m in models if len(m.candidate.keys) == 1}
     tests, admissible = {}, []
     for m in models:
-        ok, t = _admissible(m, base, singles, clusters, options, spread, reweigh, relevance_of, against)
+        ok, t = _admissible(m, base, singles, clusters, options, spread, reweigh, relevance_of)
         tests[m.label] = t
         if ok:
             admissible.append(m)

@@ -45,7 +45,7 @@ def pseudo_measurements(fit, data, sigma, options) -> list:
     for d in data:
         n = d.idx.size * len(sigma)
         Ym = np.asarray(d.Y, dtype=float)[d.idx]
-        pred = Ym + r[pos : pos + n].reshape(Ym.shape) * sigma / d.weight  # exact for offsets, first order for gains
+        pred = Ym + r[pos : pos + n].reshape(Ym.shape) * sigma / d.weight  # (residuals in measurement units)
         out.append(replace(d, Y=pred, idx=np.arange(d.idx.size, dtype=np.int64)))
         pos += n
     return out

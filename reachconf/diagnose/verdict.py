@@ -91,13 +91,14 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
     """One paragraph: what explains the gap, with intervals; or which explanations the data cannot separate."""
     pre = "INTERRUPTED, partial result: " if interrupted else ""
     ref = record.get("reference")
-    if ref is not None and ref.get("route") == "shift":
-        sh = ref["shifts"][record["model"]]
-        was = ", ".join(f"{p} = {v:.4g}" for p, v in sh["reference_params"].items())
-        pre += (f"against the reference run: the base model's held-out loss differs from it by {100 * ref['share']:+.0f} % "
-                f"(z = {ref['z']:.1f}), but {record['model']} moved — fitted on the reference {was}, its change has a "
-                f"paired z = {sh['z_change']:.1f} and its reference fit predicts this run worse than the reference; "
-                "the shares below are of that loss: ")  # fmt: skip
+    if ref is not None and ref.get("loss") == "difference":
+        if record["status"] == "none" and ref["z"] < record["thresholds"]["z_name"]:
+            return pre + (f"no change against the reference run: the base model's held-out loss differs from it by "
+                          f"{100 * ref['share']:+.0f} % (z = {ref['z']:.1f} < {record['thresholds']['z_name']:g}), "
+                          "and no effect explains the difference of the two recordings")  # fmt: skip
+        pre += (f"against the reference run (the base model's held-out loss differs from it by "
+                f"{100 * ref['share']:+.0f} %, z = {ref['z']:.1f}; the shares below are of the squared difference of "
+                "its residuals on the two recordings): ")  # fmt: skip
     elif ref is not None:
         if ref["z"] < record["thresholds"]["z_name"]:
             return pre + (f"no change against the reference run: the base model's held-out loss differs from it by "
