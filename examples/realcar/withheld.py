@@ -32,7 +32,8 @@ and the clean run and every injection are diagnosed again with that model,
 its parameters fixed, and the signal candidates; the injections are judged
 against the clean run's stage-2 fit, and the adoption is recorded.  With ``--reference``, every injection is
 diagnosed against the clean run as the reference (``rc.diagnose(..., reference=clean_suite)``: which effect
-explains how the injected run's misfit exceeds the clean run's, :mod:`reachconf.diagnose.reference`).
+explains how the injected run differs from the clean run, :mod:`reachconf.diagnose.reference`; ``--reference-loss``
+chooses how the two are compared, by default the difference of the residuals).
 """
 
 from __future__ import annotations

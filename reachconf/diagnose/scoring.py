@@ -21,8 +21,6 @@ from __future__ import annotations
 from dataclasses import replace
 from itertools import combinations
 
-import numpy as np
-
 from reachconf.diagnose.fit import Candidate, fit_candidate, window_residuals
 from reachconf.diagnose.reference import difference_scores, excess_scores
 from reachconf.diagnose.scales import case_weights, residual_scale
