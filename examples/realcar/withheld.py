@@ -22,18 +22,19 @@ biases and delays of its own).  As a command, the clean run and every
 injection are diagnosed and judged::
 
     python examples/realcar/withheld.py --data ../shared/data/realcar --out DIR [--loss-scale sensor]
-        [--only yaw_bias ax_scale] [--value yaw_bias=0.02] [--stop 120] [--signal-only] [--stage2] [--reference]
-        [--reference-loss difference]
+        [--only yaw_bias ax_scale] [--value yaw_bias=0.02] [--stop 120] [--signal-only] [--stage2]
+        [--no-reference] [--reference-loss difference]
 
 writes ``DIR/withheld.json`` and ``DIR/withheld.md``.  With ``--stage2`` (the
 two-stage workflow of ``adopt.py``), the clean run's findings are adopted into
 the model (fitted on the clean run, the car's own steering timing included)
 and the clean run and every injection are diagnosed again with that model,
 its parameters fixed, and the signal candidates; the injections are judged
-against the clean run's stage-2 fit, and the adoption is recorded.  With ``--reference``, every injection is
-diagnosed against the clean run as the reference (``rc.diagnose(..., reference=clean_suite)``: which effect
+against the clean run's stage-2 fit, and the adoption is recorded.  By default (``--reference``; since 26 Nov)
+every injection is diagnosed against the clean run as the reference (``rc.diagnose(..., reference=clean_suite)``: which effect
 explains how the injected run differs from the clean run, :mod:`reachconf.diagnose.reference`; ``--reference-loss``
-chooses how the two are compared, by default the difference of the residuals).
+chooses how the two are compared, by default the difference of the residuals); ``--no-reference`` diagnoses each
+injected run alone (single stage), as before; ``--stage2`` implies it unless ``--reference`` is given.
 """
 
 from __future__ import annotations
@@ -178,9 +179,12 @@ def main(argv=None):
     ap.add_argument("--signal-only", action="store_true", help="signal candidates only (no tyre models)")
     ap.add_argument("--stage2", action="store_true",
                     help="adopt the clean run's findings into the model, then diagnose with it (adopt.py)")
-    ap.add_argument("--reference", action="store_true",
-                    help="diagnose every injection against the clean run as the reference (what changed)")
+    ap.add_argument("--reference", action=argparse.BooleanOptionalAction, default=None,
+                    help="diagnose every injection against the clean run as the reference (what changed; the "
+                         "default without --stage2); --no-reference: each injected run alone")
     args = ap.parse_args(argv)
+    if args.reference is None:  # against the clean run, except in the two-stage workflow (measured without it)
+        args.reference = not args.stage2
     values = dict(VALUES)
     for item in args.value:
         k, v = item.split("=")

@@ -274,6 +274,24 @@ def test_an_injection_that_cancels_the_cars_own_bias_is_named_against_the_clean_
     assert len(report.named) == 1, report.verdict
 
 
+@needs_data
+def test_the_withheld_command_diagnoses_against_the_clean_run_by_default(tmp_path):
+    """``withheld.py`` without ``--no-reference`` compares every injected run with the clean one (the workflow
+    that names the injections first); 60 s, the signal candidates, one injection."""
+    import json
+
+    _, _, withheld = _realcar_modules()
+    args = ["--data", str(REAL), "--out", str(tmp_path), "--stop", "60", "--signal-only", "--only", "steer_offset",
+            "--value", "steer_offset=0.015"]  # fmt: skip
+    assert withheld.main(args) == 0
+    result = json.loads((tmp_path / "withheld.json").read_text())
+    assert result["reference"] is True
+    row = result["rows"]["steer_offset"]
+    assert row["named_first"] and abs(row["relative_error"]) <= 0.3, row
+    assert withheld.main(args + ["--no-reference", "--out", str(tmp_path / "alone")]) == 0
+    assert json.loads((tmp_path / "alone" / "withheld.json").read_text())["reference"] is False
+
+
 def test_judge_sizes_offsets_additively_and_scales_relative_to_the_clean_fit():
     _, _, withheld = _realcar_modules()
 
