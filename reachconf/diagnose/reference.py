@@ -14,7 +14,7 @@ case weights.  How the two are compared is
   its residuals match the reference fit's on the paired training windows
   (:func:`~reachconf.diagnose.fit.fit_candidate`'s ``target``), and scored
   by the squared difference of the two fits' held-out residuals, window by
-  window (:func:`difference_scores`).  The model's own misfit, common to
+  window (:func:`difference_score`).  The model's own misfit, common to
   both recordings (a real car's tyre and lateral-velocity misfit), cancels
   residual by residual; what is left is the change and what the model
   cannot make of it.  The base model's difference loss is the change as
@@ -52,7 +52,7 @@ from reachconf.diagnose.fit import prepare, window_counts, window_residuals, win
 from reachconf.diagnose.select import Scored, paired_test
 from reachconf.errors import OptionsError
 
-__all__ = ["prepare_reference", "excess_scores", "difference_scores", "change_test"]
+__all__ = ["prepare_reference", "excess_scores", "difference_score", "change_test"]
 
 
 def prepare_reference(model, reference, prepared, options) -> list:
@@ -91,23 +91,20 @@ def excess_scores(scored: Scored, on_ref: Scored) -> Scored:
     return Scored(scored.candidate, np.asarray(scored.losses) - np.asarray(on_ref.losses), scored.folds)
 
 
-def difference_scores(scored: Scored, on_ref: Scored, prepared, ref, folds, sigma, options) -> Scored:
-    """``scored`` with its held-out losses replaced by the squared difference of its held-out residuals on the
-    suite and on the reference (``reference_loss="difference"``; each fold's fits, the windows paired)."""
-    losses = np.zeros(np.asarray(scored.losses).size)
-    counts = window_counts(prepared)
-    first = np.concatenate([[0], np.cumsum(counts)])
-    for f, (fs, fr) in enumerate(zip(scored.folds, on_ref.folds)):
-        idx = np.flatnonzero(folds == f)
+def difference_score(on_ref: Scored, prepared, ref, sigma, options):
+    """The ``score`` of :func:`reachconf.diagnose.select.cross_fit` for ``reference_loss="difference"``: per held-out
+    window, the squared difference of the suite fit's residuals and those of ``on_ref``'s fit of the same fold
+    on the paired reference cases."""
+    p = len(np.atleast_1d(sigma))
+
+    def score(f, fit, idx):
+        fr = on_ref.folds[f]
         s_cases, r_cases = [prepared[i] for i in idx], [ref[i] for i in idx]
-        rs = window_residuals(fs.model, fs.candidate, fs.effect_params, s_cases, sigma, options.substeps)
+        rs = window_residuals(fit.model, fit.candidate, fit.effect_params, s_cases, sigma, options.substeps)
         rr = window_residuals(fr.model, fr.candidate, fr.effect_params, r_cases, sigma, options.substeps)
-        held = window_sums((rs - rr) ** 2, s_cases, len(np.atleast_1d(sigma)))
-        pos = 0
-        for i in idx:
-            losses[first[i] : first[i + 1]] = held[pos : pos + counts[i]]
-            pos += counts[i]
-    return Scored(scored.candidate, losses, scored.folds)
+        return window_sums((rs - rr) ** 2, s_cases, p)
+
+    return score
 
 
 def change_test(base: Scored, base_ref: Scored, clusters) -> dict:

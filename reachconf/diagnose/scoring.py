@@ -22,7 +22,7 @@ from dataclasses import replace
 from itertools import combinations
 
 from reachconf.diagnose.fit import Candidate, fit_candidate, window_residuals
-from reachconf.diagnose.reference import difference_scores, excess_scores
+from reachconf.diagnose.reference import difference_score, excess_scores
 from reachconf.diagnose.scales import case_weights, residual_scale
 from reachconf.diagnose.select import cross_fit, fold_start, paired_test
 
@@ -56,27 +56,28 @@ class _Scorer:
         # a fit stuck near the suite's value would understate what the effect can remove there
         on_ref = cross_fit(self.model, cand, self.ref, self.folds, self.sigma, self.fit_names, self.options,
                            self.cache, start=dict(self.base_ref_full.base_params))  # fmt: skip
+        if self.options.reference_loss == "difference":
+            return self.difference(cand, on_ref, start)
         sc = cross_fit(self.model, cand, self.prepared, self.folds, self.sigma, self.fit_names, self.options,
-                       self.cache, start=start, targets=self.targets(on_ref))  # fmt: skip
-        return self.paired(sc, on_ref)
+                       self.cache, start=start)  # fmt: skip
+        return excess_scores(sc, on_ref)
+
+    def difference(self, cand, on_ref, start):
+        """``cand`` cross-fitted on the suite to explain the change from its reference scoring ``on_ref``, scored
+        by what it leaves of it (``reference_loss="difference"``)."""
+        return cross_fit(self.model, cand, self.prepared, self.folds, self.sigma, self.fit_names, self.options,
+                         self.cache, start=start, targets=self.targets(on_ref),
+                         score=difference_score(on_ref, self.prepared, self.ref, self.sigma, self.options))  # fmt: skip
 
     def targets(self, on_ref):
-        """With ``reference_loss="difference"``: per fold, the reference fit's residuals on the paired training
-        cases (the suite's fit explains the change); else None."""
-        if self.options.reference_loss != "difference":
-            return None
+        """Per fold, the reference fit's residuals on the paired training cases (the suite's fit explains the
+        change)."""
         out = []
         for f, fr in enumerate(on_ref.folds):
             train = [r for r, g in zip(self.ref, self.folds) if g != f]
             out.append(window_residuals(fr.model, fr.candidate, fr.effect_params, train, self.sigma,
                                         self.options.substeps))  # fmt: skip
         return out
-
-    def paired(self, sc, on_ref):
-        """The suite's and the reference's scoring of one model combined (``options.reference_loss``)."""
-        if self.options.reference_loss == "difference":
-            return difference_scores(sc, on_ref, self.prepared, self.ref, self.folds, self.sigma, self.options)
-        return excess_scores(sc, on_ref)
 
     def screen(self, cand, start=None, ref_start=None):
         """A screening fit (effect parameters only, the base's fixed) and its ranking key."""
@@ -127,7 +128,6 @@ def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names,
         base_ref_full = fit_candidate(model, Candidate(()), ref, sigma, fit_names, options, cache,
                                       start=dict(base_full.base_params))  # fmt: skip
     sc = _Scorer(model, prepared, ref, folds, sigma, fit_names, options, cache, base_full, base_ref_full)
-    state["scorer"] = sc
     base = cross_fit(model, Candidate(()), prepared, folds, sigma, fit_names, options, cache,
                      start=dict(base_full.base_params))  # fmt: skip
     if ref is not None:
@@ -135,9 +135,9 @@ def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names,
         state["base_ref"] = cross_fit(model, Candidate(()), ref, folds, sigma, fit_names, options, cache,
                                       start=dict(base_ref_full.base_params))  # fmt: skip
         if options.reference_loss == "difference":  # the base fitted to explain the change, as every model
-            base = cross_fit(model, Candidate(()), prepared, folds, sigma, fit_names, options, cache,
-                             start=dict(base_full.base_params), targets=sc.targets(state["base_ref"]))  # fmt: skip
-        base = sc.paired(base, state["base_ref"])
+            base = sc.difference(Candidate(()), state["base_ref"], dict(base_full.base_params))
+        else:
+            base = excess_scores(base, state["base_ref"])
     state["base"] = base
     bar.update(1)
     screen, keys = state["screen"], []

@@ -39,7 +39,7 @@ import numpy as np
 
 from reachconf.diagnose.fit import Candidate, FitResult, fit_candidate, window_losses
 
-__all__ = ["Scored", "fold_assignment", "window_clusters", "paired_test", "cross_fit", "held_out_losses", "decide",
+__all__ = ["Scored", "fold_assignment", "window_clusters", "paired_test", "cross_fit", "held_out", "decide",
            "full_fit",
            "fold_start", "maneuver_parts"]
 
@@ -129,11 +129,13 @@ def paired_test(losses_a, losses_b, clusters) -> dict:
 
 
 def cross_fit(base_model, cand: Candidate, data, folds, sigma, fit_names, options, cache, start=None,
-              targets=None) -> Scored:  # fmt: skip
+              targets=None, score=None) -> Scored:  # fmt: skip
     """Fit ``cand`` on all folds but one, predict the left-out fold; for each fold.
 
     ``start``: one dict of starting values for every fold, or a list with one per fold.  ``targets``: per fold,
     the residuals the training cases are fitted to (:func:`reachconf.diagnose.fit.fit_candidate`), or None.
+    ``score(f, fit, idx)``: the per-window values of the held-out cases ``idx`` under fold ``f``'s fit (default:
+    their losses, :func:`reachconf.diagnose.fit.window_losses`).
     """
     k = int(folds.max()) + 1
     fits = []
@@ -142,26 +144,29 @@ def cross_fit(base_model, cand: Candidate, data, folds, sigma, fit_names, option
         st = start[f] if isinstance(start, list) else start
         tg = targets[f] if targets is not None else None
         fits.append(fit_candidate(base_model, cand, train, sigma, fit_names, options, cache, start=st, target=tg))
-    losses = held_out_losses(fits, data, folds, sigma, options)
-    return Scored(cand, losses, fits)
+
+    def values(f, idx):
+        if score is not None:
+            return score(f, fits[f], idx)
+        return window_losses(fits[f], [data[i] for i in idx], sigma, options)
+
+    return Scored(cand, held_out(values, data, folds), fits)
 
 
-def held_out_losses(fits, data, folds, sigma, options) -> np.ndarray:
-    """Per-window losses of ``data`` (cases in order), each case predicted by the fit of its fold ``fits[folds[i]]``.
-
-    The fits need not come from ``data`` (any fits with the fold layout of ``folds``).
-    """
+def held_out(values_of, data, folds) -> np.ndarray:
+    """Per-window values of ``data`` (cases in order) from ``values_of(f, idx)``: the values of the cases ``idx``
+    (those of fold ``f``, in order, their windows concatenated)."""
     counts = np.array([d.starts.size for d in data])
     first = np.concatenate([[0], np.cumsum(counts)])
-    losses = np.zeros(int(counts.sum()))
-    for f, fit in enumerate(fits):
-        test_idx = np.flatnonzero(folds == f)
-        held = window_losses(fit, [data[i] for i in test_idx], sigma, options)
+    out = np.zeros(int(counts.sum()))
+    for f in range(int(folds.max()) + 1):
+        idx = np.flatnonzero(folds == f)
+        held = values_of(f, idx)
         pos = 0
-        for i in test_idx:
-            losses[first[i] : first[i + 1]] = held[pos : pos + counts[i]]
+        for i in idx:
+            out[first[i] : first[i + 1]] = held[pos : pos + counts[i]]
             pos += counts[i]
-    return losses
+    return out
 
 
 def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, spread=None, reweigh=None,

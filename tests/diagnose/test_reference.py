@@ -95,7 +95,7 @@ def test_the_difference_cancels_the_models_own_misfit():
     """The same recording with a bias added (the same noise): the base's difference loss is the bias alone,
     and the bias model leaves nothing of it, although the cubic spring's misfit is large on both."""
     from reachconf.diagnose.fit import prepare
-    from reachconf.diagnose.reference import difference_scores
+    from reachconf.diagnose.reference import difference_score
     from reachconf.diagnose.select import cross_fit, fold_assignment
 
     ref_cases = [prepare(MODEL, c, OPTS) for c in _suite(noise_seed=1, n=4, duration=6.0)]
@@ -110,8 +110,9 @@ def test_the_difference_cancels_the_models_own_misfit():
         on_ref = cross_fit(MODEL, cand, ref_cases, folds, sigma, ("k", "d"), OPTS, {})
         targets = [window_residuals(f.model, cand, f.effect_params, [r for r, g in zip(ref_cases, folds) if g != k],
                                     sigma, OPTS.substeps) for k, f in enumerate(on_ref.folds)]  # fmt: skip
-        on_suite = cross_fit(MODEL, cand, suite_cases, folds, sigma, ("k", "d"), OPTS, {}, targets=targets)
-        out[label] = (on_ref, difference_scores(on_suite, on_ref, suite_cases, ref_cases, folds, sigma, OPTS))
+        score = difference_score(on_ref, suite_cases, ref_cases, sigma, OPTS)
+        out[label] = (on_ref, cross_fit(MODEL, cand, suite_cases, folds, sigma, ("k", "d"), OPTS, {}, targets=targets,
+                                        score=score))  # fmt: skip
     own = out["base"][0].total  # the base's own held-out misfit on the reference (the cubic spring)
     base, bias = out["base"][1].total, out["bias"][1].total
     assert own > 1e3 and base > 1e3  # both large: the spring's misfit, and a bias of 10 noise std
@@ -130,6 +131,34 @@ def test_a_reference_must_hold_the_same_cases():
         rc.diagnose(MODEL, suite, effects=EFFECTS, progress=False, options=OPTS, reference=_suite(n=4, duration=5.0))
     with pytest.raises(OptionsError, match="reference must be a TestSuite"):
         rc.diagnose(MODEL, suite, effects=EFFECTS, progress=False, options=OPTS, reference=3.0)
+
+
+def test_an_unknown_reference_loss_is_a_named_error(tmp_path, capsys):
+    import sys
+
+    from reachconf.cli import main
+    from reachconf.io import save_suite
+
+    with pytest.raises(OptionsError, match="reference_loss must be one of"):
+        DiagnoseOptions(reference_loss="ratio")
+    # in a run file: one line naming the option, status 2
+    save_suite(_suite(noise_seed=2, n=2, duration=4.0), tmp_path / "suite")
+    save_suite(_suite(noise_seed=1, n=2, duration=4.0), tmp_path / "ref")
+    (tmp_path / "osc_bad.py").write_text(
+        "import reachconf as rc\n"
+        "model = rc.Model(name='oscillator', states=('p', 'v'), inputs=('u',), disturbances=('w',),\n"
+        "                 params={'k': 4.0, 'd': 0.8}, dynamics=lambda s: [s.v, -s.k*s.p - s.d*s.v + s.u + s.w])\n"
+    )
+    run = tmp_path / "run.toml"
+    run.write_text('model = "osc_bad:model"\nsuite = "suite"\n[diagnose]\nreference = "ref"\nreference_loss = "ratio"\n')
+    sys.path.insert(0, str(tmp_path))
+    try:
+        capsys.readouterr()
+        assert main(["diagnose", str(run)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "reference_loss" in err, err
+    finally:
+        sys.path.remove(str(tmp_path))
 
 
 def test_a_reference_can_be_a_suite_folder(tmp_path):
