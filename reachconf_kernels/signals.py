@@ -14,16 +14,16 @@ from numba import njit, types
 from reachconf_kernels.signatures import f8_1
 
 
-@njit((f8_1, f8_1, types.float64), cache=True)
-def first_order_lag(t, u, tau):
-    """Interval means of ``y' = (u - y) / tau``, ``y(t_0) = u_0``, for the zero-order-hold input ``u``.
+@njit((f8_1, f8_1, types.float64, types.float64), cache=True)
+def first_order_lag_from(t, u, tau, y0):
+    """Interval means of ``y' = (u - y) / tau``, ``y(t_0) = y0``, for the zero-order-hold input ``u``.
 
     Exact for piecewise-constant ``u``: on ``[t_k, t_k+1)`` with ``a = exp(-dt/tau)``
     the mean is ``u_k + (y_k - u_k) tau (1 - a) / dt``.
     """
     K = t.shape[0]
     out = np.empty(K)
-    y = u[0]
+    y = y0
     for k in range(K - 1):
         dt = t[k + 1] - t[k]
         r = dt / tau
@@ -32,6 +32,12 @@ def first_order_lag(t, u, tau):
         y = u[k] + (y - u[k]) * a
     out[K - 1] = y
     return out
+
+
+@njit((f8_1, f8_1, types.float64), cache=True)
+def first_order_lag(t, u, tau):
+    """:func:`first_order_lag_from` at rest: ``y(t_0) = u_0``."""
+    return first_order_lag_from(t, u, tau, u[0])
 
 
 @njit(cache=True)

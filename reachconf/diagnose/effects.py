@@ -17,6 +17,10 @@ name                target    what the real system does that the model does not
 ``drag``            state     ``v' -> v' - c_d v |v|`` (quadratic speed term)
 ==================  ========  ===========================================================
 
+A lag's state at the start of a case is not known (a case cut from a longer
+run starts with the actuator in motion): the diagnosis fits it per case
+(``Effect.start``).
+
 Input and output effects act on known signals, so the diagnosis applies them
 to the test case (:meth:`Effect.apply_signal`, compiled filters of
 :mod:`reachconf_kernels.signals`) and keeps the base model's compiled code;
@@ -38,7 +42,7 @@ import sympy as sp
 
 from reachconf.errors import ModelError, OptionsError
 from reachconf.model.core import Model
-from reachconf_kernels.signals import first_order_lag, transport_delay
+from reachconf_kernels.signals import first_order_lag, first_order_lag_from, transport_delay
 
 __all__ = ["Effect", "EFFECTS", "register_effect", "effect_param_name"]
 
@@ -81,6 +85,11 @@ class Effect:
         a scale's 1, a delay's 0); None when there is none (a saturation's
         limit at infinity).  The consistency route of the naming rule
         measures the effect's size across maneuvers from it.
+    start : callable, optional
+        Input effects with a memory: ``start(t, x, theta, s) -> x'`` with the
+        effect's state at ``t_0`` moved by ``s`` from where ``signal`` starts
+        it.  A case cut from a longer run starts with the actuator in motion;
+        the diagnosis fits ``s`` per case (:func:`reachconf.diagnose.fit.window_residuals`).
     """
 
     name: str
@@ -96,6 +105,7 @@ class Effect:
     description: str = ""
     start_grid: tuple | None = None
     null: tuple | None = None
+    start: Callable | None = None
 
     def __post_init__(self):
         if self.kind not in ("input", "output", "param", "state"):
@@ -123,11 +133,18 @@ class Effect:
         return list({"input": model.input_names, "output": model.output_names, "state": model.state_names,
                      "param": model.param_names}[self.kind])  # fmt: skip
 
-    def apply_signal(self, t, x, theta):
-        """What the system receives (input effects) or the sensor reports (output effects) for the signal ``x``."""
+    def apply_signal(self, t, x, theta, start: float = 0.0):
+        """What the system receives (input effects) or the sensor reports (output effects) for the signal ``x``.
+
+        ``start``: the effect's state at ``t_0`` moved by this much (effects with a ``start`` only).
+        """
         # writeable contiguous copies: suites loaded from disk hold read-only arrays, compiled filters need mutable ones
-        return self.signal(np.array(t, dtype=float, order="C"), np.array(x, dtype=float, order="C"),
-                           tuple(float(v) for v in theta))  # fmt: skip
+        t = np.array(t, dtype=float, order="C")
+        x = np.array(x, dtype=float, order="C")
+        theta = tuple(float(v) for v in theta)
+        if start != 0.0 and self.start is not None:
+            return self.start(t, x, theta, float(start))
+        return self.signal(t, x, theta)
 
     def apply_model(self, base, target: str, theta=None):
         """The base model with this effect on ``target`` as a new :class:`~reachconf.Model`.
@@ -228,6 +245,10 @@ def _lag(t, u, th):
     return first_order_lag(t, u, max(th[0], 1e-6))
 
 
+def _lag_start(t, u, th, s):
+    return first_order_lag_from(t, u, max(th[0], 1e-6), u[0] + s)
+
+
 def _delay(t, u, th):
     return transport_delay(t, u, max(th[0], 0.0))
 
@@ -260,7 +281,7 @@ def register_effect(effect: Effect) -> Effect:
 
 register_effect(Effect("actuator_lag", "input", ("tau",), lambda x: (0.05,), lambda x: ((0.002,), (1.0,)),
                        signal=_lag, order=2, description="first-order actuator lag, time constant tau [s]",
-                       null=(0.0,)))  # fmt: skip
+                       null=(0.0,), start=_lag_start))  # fmt: skip
 register_effect(Effect("dead_time", "input", ("T",), lambda x: (0.04,), lambda x: ((0.0,), (0.5,)),
                        signal=_delay, order=3, description="transport delay T [s] on an input",
                        start_grid=(0.02, 0.05, 0.08, 0.12, 0.16, 0.2, 0.3), null=(0.0,)))  # fmt: skip

@@ -23,13 +23,12 @@ import numpy as np
 
 from reachconf.diagnose.effects import effect_param_name
 from reachconf.diagnose.options import INTERVAL_METHODS, DiagnoseOptions
+from reachconf.diagnose.residuals import case_starts, window_residuals
 from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.cases import TestCase, case_arrays
-from reachconf.model.outputs import evaluate_outputs, output_index_of_states, state_estimate, state_index_of_outputs
-from reachconf_kernels.integrate import rk4_windows
 
 __all__ = ["noise_level", "PreparedCase", "prepare", "Candidate", "FitResult",
-           "fit_candidate", "transformed_case", "transformed_signals", "window_residuals", "window_losses",
+           "case_starts", "fit_candidate", "transformed_case", "transformed_signals", "window_residuals", "window_losses",
            "window_counts", "prediction_cost"]
 
 
@@ -147,80 +146,33 @@ def _model_for(base, cand: Candidate, cache: dict):
     return model.with_params(**{n: base.params[n] for n in base.param_names}), names
 
 
-def transformed_signals(model, cand: Candidate, theta_eff: dict, t, U, Y):
-    """Inputs the system really received and outputs the model should produce (input/output effects applied)."""
+def transformed_signals(model, cand: Candidate, theta_eff: dict, t, U, Y, starts=None):
+    """Inputs the system really received and outputs the model should produce (input/output effects applied).
+
+    ``starts``: the start offsets of input effects with memory (:func:`case_starts`).
+    """
     U = U.copy()
     Y = Y.copy()
     for e, tgt in sorted(cand.parts, key=lambda p: p[0].order):
         th = theta_eff[(e.name, tgt)]
         if e.kind == "input":
             j = model.input_names.index(tgt)
-            U[:, j] = e.apply_signal(t, U[:, j], th)
+            U[:, j] = e.apply_signal(t, U[:, j], th, (starts or {}).get((e.name, tgt), 0.0))
         elif e.kind == "output":
             i = model.output_names.index(tgt)
             Y[:, i] = e.inverse(Y[:, i], th)
     return U, Y
 
 
-def transformed_case(model, case, cand: Candidate, theta_eff: dict):
-    """A copy of ``case`` as seen by the model with the candidate's input/output effects."""
+def transformed_case(model, case, cand: Candidate, theta_eff: dict, starts=None):
+    """A copy of ``case`` as seen by the model with the candidate's input/output effects (``starts``: as
+    :func:`transformed_signals`)."""
     t, U, Y = case_arrays(model, case)
-    U2, Y2 = transformed_signals(model, cand, theta_eff, t, U, Y)
+    U2, Y2 = transformed_signals(model, cand, theta_eff, t, U, Y, starts)
     # extra signals (e.g. a measured lateral acceleration) travel along: the gap location correlates with them
     extras = {k: v for k, v in dict(getattr(case, "extras", {})).items() if np.shape(v) == np.shape(t)}
     return TestCase(case.name, getattr(case, "group", "default"), t, U2, Y2, model.input_names, model.output_names,
                     extras)  # fmt: skip
-
-
-def _states(model, Ys, U, direct):
-    if direct is not None:
-        return np.ascontiguousarray(Ys[:, direct])
-    t = np.arange(Ys.shape[0], dtype=float)
-    return state_estimate(model, TestCase("windows", "default", t, U, Ys, model.input_names, model.output_names))
-
-
-def window_residuals(model, cand: Candidate, theta_eff: dict, data, sigma, substeps):
-    """Normalised multi-step prediction residuals of all windows of all cases (one flat array).
-
-    Window after window (each ``length x p`` values), case after case.  An
-    output effect corrects the measured start state (its inverse) and passes
-    the prediction through itself: the residual stays in measurement units,
-    so that an output scale cannot lower the loss by shrinking the residuals
-    (``y / k - y_pred`` would, by ``1/k``).
-    """
-    comp = model.compiled()
-    pv = model.param_vector
-    direct = output_index_of_states(model)
-    plain = state_index_of_outputs(model)
-    inputs = [(e, tgt) for e, tgt in sorted(cand.parts, key=lambda p: p[0].order) if e.kind == "input"]
-    outputs = [(e, tgt) for e, tgt in cand.parts if e.kind == "output"]
-    out = []
-    for d in data:
-        U = d.U
-        if inputs:
-            U = U.copy()
-            for e, tgt in inputs:
-                j = model.input_names.index(tgt)
-                U[:, j] = e.apply_signal(d.t, U[:, j], theta_eff[(e.name, tgt)])
-        Ym, Y0 = d.Y[d.idx], d.Ys[d.starts]
-        if outputs:  # the start state from the corrected measurement, the residual in measurement units
-            Y0 = Y0.copy()
-            for e, tgt in outputs:
-                i = model.output_names.index(tgt)
-                Y0[:, i] = e.inverse(Y0[:, i], theta_eff[(e.name, tgt)])
-        X0 = _states(model, Y0, U[d.starts], direct)
-        P = rk4_windows(comp.f, np.ascontiguousarray(X0), d.starts, U, d.t, pv, model.q, d.length, int(substeps))
-        Xp = P[:, d.offsets - 1, :].reshape(-1, model.n)
-        Yp = Xp[:, plain] if plain is not None else evaluate_outputs(model, Xp, U[d.idx])
-        if outputs:
-            Yp = Yp.copy()
-            for e, tgt in outputs:
-                i = model.output_names.index(tgt)
-                Yp[:, i] = e.apply_signal(d.t[d.idx], Yp[:, i], theta_eff[(e.name, tgt)])
-        if not np.all(np.isfinite(Yp)):
-            Yp = np.where(np.isfinite(Yp), Yp, 1e6)
-        out.append(((Yp - Ym) * (d.weight / sigma)).reshape(-1))
-    return np.concatenate(out)
 
 
 def window_counts(data) -> np.ndarray:
@@ -334,6 +286,8 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
     fit the residuals to it instead of to zero — with a reference run, the
     reference fit's residuals on the paired cases, so that the fit explains
     the change between the recordings (``reference_loss="difference"``).
+    A lag's state at the start of each case is a nuisance, fitted per case
+    in every evaluation (variable projection, :func:`window_residuals`).
     """
     from scipy.optimize import least_squares
 
@@ -371,10 +325,9 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
         return model.with_params(**params), eff
 
     n_data = [None]
-
     def fun(x):
         m, eff = unpack(x)
-        r = window_residuals(m, cand, eff, train, sigma, options.substeps)
+        r = window_residuals(m, cand, eff, train, sigma, options.substeps, target=target)
         if target is not None:
             r = r - target
         n_data[0] = r.size

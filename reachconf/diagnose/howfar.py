@@ -15,7 +15,8 @@ import numpy as np
 from reachconf.conformance.bounds import case_box
 from reachconf.conformance.synthesis import SynthesisOptions, synthesize_W
 from reachconf.conformance.trace import TraceOptions
-from reachconf.diagnose.fit import transformed_case
+from reachconf.diagnose.fit import case_starts, noise_level, transformed_case
+from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.errors import ReachconfError
 from reachconf.io.cases import TestCase, TestSuite
 from reachconf.model.outputs import output_index_of_states
@@ -56,11 +57,16 @@ def decimated_cases(model, fit, cases, k, segment=None):
     The minimal box of a whole open-loop trace is dominated by the drift that
     small errors build up over many seconds; boxes of short segments (each
     free to start anywhere in the measurement's V) measure what the effect
-    changes.
+    changes.  A lag starts each case where it fits it best (:func:`case_starts`).
     """
     out = []
+    memory = any(e.kind == "input" and e.start is not None for e, _ in fit.candidate.parts)
     for d in cases:
-        c = transformed_case(model, d.case, fit.candidate, fit.effect_params)
+        starts = None
+        if memory:
+            sigma = np.maximum(noise_level(d.Y), 1e-12)
+            starts = case_starts(fit.model, fit.candidate, fit.effect_params, d, sigma, DiagnoseOptions().substeps)[0]
+        c = transformed_case(model, d.case, fit.candidate, fit.effect_params, starts)
         out += segments_of(c.decimate(k) if k > 1 else c, segment)
     return out
 

@@ -383,12 +383,13 @@ def test_injected_effect_is_named_first_and_sized_within_30_percent(clean_diagno
 
 #: against the clean run as the reference (``rc.diagnose(..., reference=)``, the difference of the residuals): the
 #: same values as the slow checks above, and two that move the car's own yaw-rate bias and ax scale towards none
-#: (the base model's misfit falls: "no change" by the excess of the losses)
+#: (the base model's misfit falls: "no change" by the excess of the losses); and a slow lag, 0.25 s, which came out
+#: 42 % small while a lag started at the request's first sample (the inverse lag amplifies the record's noise)
 @needs_data
 @pytest.mark.slow
 @pytest.mark.parametrize("name, value", [("steer_offset", 0.01), ("ax_scale", 0.9), ("yaw_bias", 0.03),
                                          ("dead_time", 0.05), ("lag", 0.1), ("yaw_bias", -0.03),
-                                         ("ax_scale", 1.05)])  # fmt: skip
+                                         ("ax_scale", 1.05), ("lag", 0.25)])  # fmt: skip
 def test_injected_effect_against_the_clean_run_is_named_first_and_sized_within_30_percent(clean_diagnosis, name,
                                                                                            value):  # fmt: skip
     """The whole run, every candidate, the clean run as the reference (what changed)."""
