@@ -116,6 +116,9 @@ class Effect:
             raise OptionsError(f"effect {self.name!r}: an output effect needs its inverse")
         if self.kind in ("param", "state") and self.model is None:
             raise OptionsError(f"effect {self.name!r}: a {self.kind} effect needs a model transformation")
+        if self.start is not None and (self.kind != "input" or not callable(self.start)):
+            raise OptionsError(f"effect {self.name!r}: start must be a callable of an input effect "
+                               f"(start(t, x, theta, s)), got {self.start!r} on a {self.kind} effect")  # fmt: skip
         if self.start_grid is not None:
             g = np.asarray(self.start_grid, dtype=float) if np.ndim(self.start_grid) == 1 else None
             if g is None or g.size == 0 or not np.all(np.isfinite(g)):

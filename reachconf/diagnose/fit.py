@@ -22,9 +22,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from reachconf.diagnose.effects import effect_param_name
-from reachconf.diagnose.options import INTERVAL_METHODS, DiagnoseOptions
-from reachconf.diagnose.residuals import case_starts, window_residuals
-from reachconf.errors import ConformanceError, OptionsError
+from reachconf.diagnose.options import DiagnoseOptions
+from reachconf.diagnose.residuals import case_starts, received_inputs, window_residuals
+from reachconf.errors import ConformanceError
 from reachconf.io.cases import TestCase, case_arrays
 
 __all__ = ["noise_level", "PreparedCase", "prepare", "Candidate", "FitResult",
@@ -151,16 +151,13 @@ def transformed_signals(model, cand: Candidate, theta_eff: dict, t, U, Y, starts
 
     ``starts``: the start offsets of input effects with memory (:func:`case_starts`).
     """
-    U = U.copy()
+    inputs = [(e, tgt) for e, tgt in sorted(cand.parts, key=lambda p: p[0].order) if e.kind == "input"]
+    U = received_inputs(model, inputs, t, U, theta_eff, starts).copy()
     Y = Y.copy()
-    for e, tgt in sorted(cand.parts, key=lambda p: p[0].order):
-        th = theta_eff[(e.name, tgt)]
-        if e.kind == "input":
-            j = model.input_names.index(tgt)
-            U[:, j] = e.apply_signal(t, U[:, j], th, (starts or {}).get((e.name, tgt), 0.0))
-        elif e.kind == "output":
+    for e, tgt in cand.parts:
+        if e.kind == "output":
             i = model.output_names.index(tgt)
-            Y[:, i] = e.inverse(Y[:, i], th)
+            Y[:, i] = e.inverse(Y[:, i], theta_eff[(e.name, tgt)])
     return U, Y
 
 

@@ -51,13 +51,14 @@ def measurement_box(model, cases):
     return np.min([r.lo for r in rs], axis=0), np.max([r.hi for r in rs], axis=0)
 
 
-def decimated_cases(model, fit, cases, k, segment=None):
+def decimated_cases(model, fit, cases, k, segment=None, substeps=None):
     """Held-out cases as the candidate model sees them, decimated; cut into ``segment``-second pieces if given.
 
     The minimal box of a whole open-loop trace is dominated by the drift that
     small errors build up over many seconds; boxes of short segments (each
     free to start anywhere in the measurement's V) measure what the effect
-    changes.  A lag starts each case where it fits it best (:func:`case_starts`).
+    changes.  A lag starts each case where it fits it best (:func:`case_starts`,
+    with ``substeps`` RK4 steps per sample, default :class:`DiagnoseOptions`).
     """
     out = []
     memory = any(e.kind == "input" and e.start is not None for e, _ in fit.candidate.parts)
@@ -65,7 +66,8 @@ def decimated_cases(model, fit, cases, k, segment=None):
         starts = None
         if memory:
             sigma = np.maximum(noise_level(d.Y), 1e-12)
-            starts = case_starts(fit.model, fit.candidate, fit.effect_params, d, sigma, DiagnoseOptions().substeps)[0]
+            steps = DiagnoseOptions().substeps if substeps is None else substeps
+            starts = case_starts(fit.model, fit.candidate, fit.effect_params, d, sigma, steps)[0]
         c = transformed_case(model, d.case, fit.candidate, fit.effect_params, starts)
         out += segments_of(c.decimate(k) if k > 1 else c, segment)
     return out

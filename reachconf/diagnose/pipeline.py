@@ -281,8 +281,8 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     base0 = base_sc.folds[0]
     after0 = chosen.folds[0] if chosen is not None else base0
     box_test = test[: options.box_cases]
-    test_base = decimated_cases(model, base0, test, k)
-    train_base = decimated_cases(model, base0, train, k)
+    test_base = decimated_cases(model, base0, test, k, substeps=options.substeps)
+    train_base = decimated_cases(model, base0, train, k, substeps=options.substeps)
     where = {"location": locate_gap(base0.model, TestSuite(train_base + test_base), V=V).to_dict()}
     avp = actuator_vs_process(model, base0, box_test, V, k, options.box_segment)
     if avp is not None:
@@ -291,11 +291,13 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     timings["where"] = time.process_time() - c_start - sum(timings.values())
     per_step = [trace_disturbances(base0.model, c, V=V).W_trace for c in test_base]
     eps = 1e-9 + 0.05 * np.ptp(np.vstack(per_step), axis=0)
-    segs_base = decimated_cases(model, base0, box_test, k, options.box_segment)
+    segs_base = decimated_cases(model, base0, box_test, k, options.box_segment, options.substeps)
     base_box = minimal_box(base0.model, segs_base, V)
     if base_box is None:
         raise ConformanceError("diagnose: no minimal disturbance box found for the refitted base model")
-    segs_after = decimated_cases(model, after0, box_test, k, options.box_segment) if chosen is not None else segs_base
+    segs_after = segs_base
+    if chosen is not None:
+        segs_after = decimated_cases(model, after0, box_test, k, options.box_segment, options.substeps)
     after_box = minimal_box(after0.model, segs_after, V) if chosen is not None else base_box
     before_after, shrink = {}, None
     if after_box is not None:
@@ -325,7 +327,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     if after_box is not None and options.tube_horizon > 0 and test:
         first = test[0]
         tubes = reach_tubes(model, [("base", base0, base_box), ("with effect", after0, after_box)],
-                            lambda f: decimated_cases(model, f, [first], k)[0], options.tube_horizon, V)  # fmt: skip
+                            lambda f: decimated_cases(model, f, [first], k, substeps=options.substeps)[0], options.tube_horizon, V)  # fmt: skip
 
     timings["how_far"] = time.process_time() - c_start - sum(timings.values())
     # model-free check on the training cases of the first fold

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from reachconf.errors import OptionsError
 from reachconf.io.cases import TestCase
 from reachconf.model.outputs import (
     evaluate_outputs,
@@ -19,7 +20,7 @@ from reachconf.model.outputs import (
 )
 from reachconf_kernels.integrate import rk4_windows
 
-__all__ = ["case_starts", "fitted_starts", "has_memory", "window_residuals"]
+__all__ = ["case_starts", "received_inputs", "window_residuals"]
 
 #: a lag's start counts as decayed below this fraction: windows that begin later are not simulated again
 START_DECAYED = 1e-5
@@ -32,16 +33,21 @@ def _states(model, Ys, U, direct):
     return state_estimate(model, TestCase("windows", "default", t, U, Ys, model.input_names, model.output_names))
 
 
-def _received(model, inputs, d, theta_eff, starts):
-    """The case's inputs with the input effects applied, each with memory started at ``starts[key]``."""
+def received_inputs(model, inputs, t, U, theta_eff: dict, starts=None):
+    """What the system really received: ``U`` with the input effects ``inputs`` (``(effect, target)`` pairs, in
+    their composition order) applied, each with memory started at ``starts[(effect, target)]`` (default 0)."""
     if not inputs:
-        return d.U
-    U = d.U.copy()
+        return U
+    U = U.copy()
     for e, tgt in inputs:
         j = model.input_names.index(tgt)
         key = (e.name, tgt)
-        U[:, j] = e.apply_signal(d.t, U[:, j], theta_eff[key], starts.get(key, 0.0))
+        U[:, j] = e.apply_signal(t, U[:, j], theta_eff[key], (starts or {}).get(key, 0.0))
     return U
+
+
+def _received(model, inputs, d, theta_eff, starts):
+    return received_inputs(model, inputs, d.t, d.U, theta_eff, starts)
 
 
 def _start_states(model, outputs, theta_eff, d, U, K, direct):
@@ -164,16 +170,6 @@ def case_starts(model, cand, theta_eff: dict, d, sigma, substeps):
     return found[0], r[0]
 
 
-def has_memory(cand) -> bool:
-    """Whether the candidate has an input effect whose state at a case's start is fitted (``Effect.start``)."""
-    return any(e.kind == "input" and e.start is not None for e, _ in cand.parts)
-
-
-def fitted_starts(model, cand, theta_eff: dict, data, sigma, substeps) -> list:
-    """:func:`case_starts` of every case: a list of ``{(effect, target): offset}``."""
-    return _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps)[0]
-
-
 def _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, fixed=None, target=None):
     comp = model.compiled()
     pv = model.param_vector
@@ -182,6 +178,8 @@ def _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, fixed=N
     inputs = [(e, tgt) for e, tgt in sorted(cand.parts, key=lambda p: p[0].order) if e.kind == "input"]
     outputs = [(e, tgt) for e, tgt in cand.parts if e.kind == "output"]
     args = (model, comp, pv, direct, plain)
+    if fixed is not None and len(fixed) != len(data):
+        raise OptionsError(f"starts: one dict per case expected ({len(data)}), got {len(fixed)}")
     given = fixed if fixed is not None else [{}] * len(data)
     received = [_received(model, inputs, d, theta_eff, st) for d, st in zip(data, given)]
     res = _batch_residuals(*args, outputs, theta_eff, [(d, U, d.starts.size) for d, U in zip(data, received)], sigma,
@@ -189,6 +187,8 @@ def _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, fixed=N
     if fixed is not None or not any(e.start is not None for e, _ in inputs):
         return [{} for _ in data], res
     sizes = np.cumsum([0] + [r.size for r in res])
+    if target is not None and np.size(target) != sizes[-1]:
+        raise OptionsError(f"target: {sizes[-1]} values expected (laid out as the residuals), got {np.size(target)}")
     targets = [np.zeros(r.size) for r in res] if target is None else [
         np.asarray(target, dtype=float)[a:b] for a, b in zip(sizes[:-1], sizes[1:])]  # fmt: skip
     res, found = _fit_starts(*args, inputs, outputs, theta_eff, data, received, res, targets, sigma, substeps)
@@ -204,7 +204,7 @@ def window_residuals(model, cand, theta_eff: dict, data, sigma, substeps, starts
     so that an output scale cannot lower the loss by shrinking the residuals
     (``y / k - y_pred`` would, by ``1/k``).  An input effect with memory (a
     lag) starts each case where it fits best (:func:`case_starts`), or
-    where ``starts`` (one dict per case, as :func:`fitted_starts`) says;
+    where ``starts`` (one dict per case, as :func:`case_starts` gives) says;
     with ``target`` (laid out as the result), the start that brings the
     residuals nearest to it (a fit that explains the change from a reference).
     """

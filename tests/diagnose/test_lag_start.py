@@ -112,3 +112,27 @@ def test_diagnose_sizes_a_lag_on_cases_cut_from_one_run():
     (named,) = rep.named
     assert (named["effect"], named["target"]) == ("actuator_lag", "u")
     assert abs(named["params"]["tau"] - tau) < 0.1 * tau
+
+
+def test_bad_starts_and_targets_are_named_errors():
+    import dataclasses
+
+    import pytest
+
+    from reachconf.errors import OptionsError
+
+    m, suite, _ = _cut_run(0.3, seconds=14.0)
+    cand = Candidate(((EFFECTS["actuator_lag"], "u"),))
+    opts = DiagnoseOptions()
+    data = [prepare(m, c, opts) for c in suite.cases]
+    sigma = np.array([0.002, 0.002])
+    theta = {("actuator_lag", "u"): (0.3,)}
+    with pytest.raises(OptionsError, match="starts: one dict per case"):
+        window_residuals(m, cand, theta, data, sigma, opts.substeps, starts=[{}])
+    with pytest.raises(OptionsError, match="target: .* values expected"):
+        window_residuals(m, cand, theta, data, sigma, opts.substeps, target=np.zeros(3))
+    # a start belongs to an input effect and must be callable
+    with pytest.raises(OptionsError, match="start must be a callable of an input effect"):
+        dataclasses.replace(EFFECTS["output_offset"], start=lambda t, x, th, s: x)
+    with pytest.raises(OptionsError, match="start must be a callable"):
+        dataclasses.replace(EFFECTS["actuator_lag"], start=0.1)
