@@ -1,6 +1,6 @@
 """A real car on a race track (Stanford data, 100 Hz): conformance of the single-track model and its gap.
 
-    python examples/realcar/run.py --data ../shared/data/realcar --out DIR [--workers 2] [--quick] [--no-diagnosis]
+    python examples/realcar/run.py --data ../shared/data/realcar --out DIR [--workers N] [--quick] [--no-diagnosis]
 
 The recording (550 s, measured; ``../shared/data/realcar/README.md``) and the
 built-in model ``single_track`` (linear tyres, the README's parameters):
@@ -29,8 +29,11 @@ built-in model ``single_track`` (linear tyres, the README's parameters):
    ``DIR/diagnosis``, and the Table-3 boxes per band again with the named
    effect.
 
-Writes ``DIR/realcar.json``, ``DIR/realcar.md`` and the pictures; timings are
-wall and CPU seconds of this process (workers' CPU not included).  Bad
+Steps 3-4 and the Table-3 boxes after the diagnosis run on ``--workers``
+local processes (default :func:`default_workers`: the machine's cores, at
+most :data:`MAX_DEFAULT_WORKERS`; ``--workers 1`` runs everything in this
+process).  Writes ``DIR/realcar.json``, ``DIR/realcar.md`` and the pictures;
+timings are wall and CPU seconds of this process (workers' CPU not included).  Bad
 ``--data``: one-line error, exit 2.
 """
 
@@ -60,6 +63,15 @@ REPO_ROOT = Path(__file__).resolve().parents[2]
 CASE_SECONDS, WINDOW_SECONDS = 10.0, 2.0
 #: --quick: the first 60 s of the run (the test suite's run)
 QUICK_SECONDS = 60.0
+
+
+#: the default number of worker processes is the machine's cores, but at most this many (each holds ~0.3 GB)
+MAX_DEFAULT_WORKERS = 4
+
+
+def default_workers() -> int:
+    """Worker processes when ``--workers`` is not given: ``min(cores, MAX_DEFAULT_WORKERS)``."""
+    return max(1, min(os.cpu_count() or 1, MAX_DEFAULT_WORKERS))
 
 
 def default_data() -> Path:
@@ -244,7 +256,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=None, help="data folder (default: ../shared/data/realcar from the repo root)")
     ap.add_argument("--out", required=True, help="output folder")
-    ap.add_argument("--workers", type=int, default=None, help="local worker processes")
+    ap.add_argument("--workers", type=int, default=None,
+                    help=f"local worker processes (default: the machine's cores, at most {MAX_DEFAULT_WORKERS})")
     ap.add_argument("--quick", action="store_true", help=f"only the first {QUICK_SECONDS:g} s of the run")
     ap.add_argument("--no-diagnosis", action="store_true", help="stop after the conformance tables")
     ap.add_argument("--no-plots", action="store_true")
@@ -260,7 +273,10 @@ def main(argv=None):
         print(f"realcar: error: {exc}", file=sys.stderr)
         return 2
     result = {"data": str(data)}
-    pool = Pool(args.workers)
+    if args.workers is not None and args.workers < 1:
+        print(f"realcar: error: --workers must be >= 1, got {args.workers}", file=sys.stderr)
+        return 2
+    pool = Pool(args.workers if args.workers is not None else default_workers())
     try:
         with clock("suite and V"):
             stop = cols["t"][0] + QUICK_SECONDS if args.quick else None

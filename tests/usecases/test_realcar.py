@@ -69,6 +69,21 @@ def test_bad_data_folder_is_one_line_exit_2(ex, tmp_path, capsys):
     assert "missing stanford_track_100hz.csv.gz" in capsys.readouterr().err
 
 
+def test_bad_workers_is_one_line_exit_2(ex, tmp_path, capsys):
+    assert ex.main(["--data", str(REAL), "--out", str(tmp_path / "o"), "--workers", "0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--workers must be >= 1" in err[0]
+
+
+def test_default_workers_are_the_cores_capped(ex, monkeypatch):
+    monkeypatch.setattr(ex.os, "cpu_count", lambda: 2)
+    assert ex.default_workers() == 2
+    monkeypatch.setattr(ex.os, "cpu_count", lambda: 64)
+    assert ex.default_workers() == ex.MAX_DEFAULT_WORKERS
+    monkeypatch.setattr(ex.os, "cpu_count", lambda: None)
+    assert ex.default_workers() == 1
+
+
 @needs_data
 def test_suite_is_written_in_the_documented_format_with_ay(quick):
     out, res = quick
