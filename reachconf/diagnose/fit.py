@@ -201,6 +201,9 @@ class FitResult:
         Labels of the parameters that ended at a bound.
     spread : dict
         (effect, target) -> the estimates fitted on each group of cases alone.
+    bounds : dict
+        (effect, target) -> ``(lo, hi)`` tuples: the parameters' admissible
+        range in this fit (:attr:`Effect.bounds`); intervals are clipped to it.
     """
 
     candidate: Candidate
@@ -216,6 +219,7 @@ class FitResult:
     cov: dict = field(default_factory=dict)  # clustering -> (covariance of x, number of clusters)
     at_bound: tuple = ()  # labels of parameters ending at a bound
     spread: dict = field(default_factory=dict)  # (effect, target) -> per-group estimates (list of tuples)
+    bounds: dict = field(default_factory=dict)  # (effect, target) -> (lo tuple, hi tuple) of the fit
 
     def std(self, key, method: str = "case") -> tuple:
         """Standard deviations of the effect parameters of ``key``: robust (``"case"``, ``"group"``) or of the
@@ -237,7 +241,8 @@ class FitResult:
     def interval(self, key, level: float = 0.95, method: str = "spread") -> list:
         """``[(lo, hi), ...]`` intervals of the effect parameters of ``key = (effect, target)``.
 
-        Estimate +- Student t quantile (number of clusters or groups - 1 degrees of freedom) x :meth:`std`.
+        Estimate +- Student t quantile (number of clusters or groups - 1 degrees of freedom) x :meth:`std`,
+        clipped to the parameter's admissible range (:attr:`bounds`): a dead time is never negative.
         """
         from scipy.stats import t as student_t
 
@@ -246,7 +251,9 @@ class FitResult:
         if n < 2:
             return [(float("nan"), float("nan")) for _ in th]
         q = float(student_t.ppf(0.5 + level / 2, n - 1))
-        return [(float(v - q * sd), float(v + q * sd)) for v, sd in zip(th, self.std(key, method))]
+        lo, hi = self.bounds.get(key, ((-np.inf,) * len(th), (np.inf,) * len(th)))
+        return [(float(max(v - q * sd, a)), float(min(v + q * sd, b)))
+                for v, sd, a, b in zip(th, self.std(key, method), lo, hi)]  # fmt: skip
 
 
 def _robust_cov(J, r, n_data, blocks_by):
@@ -377,8 +384,10 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
             std[(e.name, tgt)] = tuple(float(v) for v in sd[i : i + k])
     tol = 1e-6 * np.where(np.isfinite(span), span, 1.0)
     at_bound = tuple(lab for lab, v, a, b, eps in zip(labels, sol.x, lo, hi, tol) if v - a <= eps or b - v <= eps)
+    bounds = {(e.name, tgt): (tuple(map(float, lo[i : i + k])), tuple(map(float, hi[i : i + k])))
+              for e, tgt, i, k in slots}  # fmt: skip
     return FitResult(cand, m, dict(zip(fit_names, sol.x[:nb])), eff, std, float(np.mean(r**2)), bool(sol.success),
-                     sol.message, np.array(sol.x), tuple(labels), cov, at_bound)  # fmt: skip
+                     sol.message, np.array(sol.x), tuple(labels), cov, at_bound, bounds=bounds)  # fmt: skip
 
 
 def _target_signal(model, e, tgt, data):
