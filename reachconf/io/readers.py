@@ -104,7 +104,7 @@ def read_npz_columns(path: Path) -> dict:
     """Column name -> float array of an ``.npz`` file (see the module docstring for what is accepted)."""
     try:
         zf = zipfile.ZipFile(path)
-    except (zipfile.BadZipFile, EOFError, ValueError) as exc:
+    except (zipfile.BadZipFile, EOFError, ValueError, NotImplementedError) as exc:  # (a corrupt version field)
         raise DataError(f"{path}: not a readable .npz file (truncated or not a zip archive: {exc})") from None
     except OSError as exc:
         raise _cannot_read(path, exc) from None

@@ -251,3 +251,16 @@ def test_fuzzed_suite_toml_loads_or_raises_a_data_error_naming_the_folder(doc):
         case = suite[0]
         assert case.t.size == 3 and np.all(np.isfinite(case.Y))
         assert isinstance(suite.name, str) and isinstance(case.group, str)
+
+
+def test_npz_whose_central_directory_names_an_unsupported_zip_version_is_a_data_error(tmp_path):
+    """Found by the fuzz test above (a flipped byte): zipfile raises NotImplementedError("zip file version 10.9")
+    while opening such an archive; it must be a DataError naming the file."""
+    path = tmp_path / "case.npz"
+    np.savez(path, t=np.array([0.1, 0.2, 0.3]), y=np.zeros(3))
+    raw = bytearray(path.read_bytes())
+    cd = raw.rfind(b"PK\x01\x02")  # a central directory entry: signature, version made by (2), version needed (2)
+    raw[cd + 6 : cd + 8] = (109).to_bytes(2, "little")  # "version needed to extract" 10.9
+    path.write_bytes(bytes(raw))
+    case, error = load_or_error(load_case, path)
+    assert case is None and "not a readable .npz file" in str(error)
