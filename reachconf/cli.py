@@ -30,7 +30,6 @@ import os
 import signal
 import sys
 import threading
-import time
 from pathlib import Path
 
 from reachconf import commands

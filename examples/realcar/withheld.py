@@ -40,7 +40,6 @@ injected run alone (single stage), as before; ``--stage2`` implies it unless ``-
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path

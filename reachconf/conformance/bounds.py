@@ -332,7 +332,7 @@ def box_scp(model, t, U, Y, V_lo, V_hi, x0, W, options, objective="sum", W_fixed
         (or measurement errors with ``V_free``), not the QP's variables.
     """
     r = int(options.subdivision)
-    n, q, p = model.n, model.q, model.p
+    q, p = model.q, model.p
     if V_free:
         big = np.full(p, np.inf)
         prob = TraceQP(model, t, U, Y, -big, big, r=r, substeps=options.substeps)

@@ -34,7 +34,7 @@ sympy transformations whose new parameters are fitted through
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np

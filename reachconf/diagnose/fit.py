@@ -122,6 +122,11 @@ class Candidate:
         return frozenset((e.name, t) for e, t in self.parts)
 
     @property
+    def inputs(self) -> list:
+        """Its input effects ``(Effect, target)`` in their composition order (offsets before scales)."""
+        return [(e, t) for e, t in sorted(self.parts, key=lambda p: p[0].order) if e.kind == "input"]
+
+    @property
     def structural(self) -> tuple:
         """The (effect name, target) pairs of its model-kind effects: the key of its compiled model (empty: none)."""
         return tuple((e.name, t) for e, t in self.parts if e.kind in ("param", "state"))
@@ -151,8 +156,7 @@ def transformed_signals(model, cand: Candidate, theta_eff: dict, t, U, Y, starts
 
     ``starts``: the start offsets of input effects with memory (:func:`case_starts`).
     """
-    inputs = [(e, tgt) for e, tgt in sorted(cand.parts, key=lambda p: p[0].order) if e.kind == "input"]
-    U = received_inputs(model, inputs, t, U, theta_eff, starts).copy()
+    U = received_inputs(model, cand.inputs, t, U, theta_eff, starts).copy()
     Y = Y.copy()
     for e, tgt in cand.parts:
         if e.kind == "output":

@@ -61,7 +61,7 @@ def decimated_cases(model, fit, cases, k, segment=None, substeps=None):
     with ``substeps`` RK4 steps per sample, default :class:`DiagnoseOptions`).
     """
     out = []
-    memory = any(e.kind == "input" and e.start is not None for e, _ in fit.candidate.parts)
+    memory = any(e.start is not None for e, _ in fit.candidate.inputs)
     for d in cases:
         starts = None
         if memory:

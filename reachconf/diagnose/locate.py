@@ -196,7 +196,7 @@ def locate_gap(model, suite, V=None, envelope: float = 4.0, min_duration: float 
 
     from scipy.stats import spearmanr
 
-    feats, cols = [], []
+    cols = []
     for c in cases:
         sig = {k: v[:-1] for k, v in c.signals.items()}
         dt = np.diff(c.t)

@@ -175,7 +175,7 @@ def _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, fixed=N
     pv = model.param_vector
     direct = output_index_of_states(model)
     plain = state_index_of_outputs(model)
-    inputs = [(e, tgt) for e, tgt in sorted(cand.parts, key=lambda p: p[0].order) if e.kind == "input"]
+    inputs = cand.inputs
     outputs = [(e, tgt) for e, tgt in cand.parts if e.kind == "output"]
     args = (model, comp, pv, direct, plain)
     if fixed is not None and len(fixed) != len(data):

@@ -32,7 +32,6 @@ def test_locate_gap_finds_channel_segment_and_condition():
 # ---------------------------------------------------------------------------------------------------------------
 # which effect: the library, the joint fits and the report
 import json  # noqa: E402
-import math  # noqa: E402
 
 import pytest  # noqa: E402
 

@@ -32,7 +32,7 @@ acceleration actually realised are logged as ``delta, ax``; the requests as
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
