@@ -19,7 +19,7 @@ name                target    what the real system does that the model does not
 
 A lag's state at the start of a case is not known (a case cut from a longer
 run starts with the actuator in motion): the diagnosis fits it per case
-(``Effect.start``).
+(``Effect.start``) on the samples before the case's first prediction window.
 
 Input and output effects act on known signals, so the diagnosis applies them
 to the test case (:meth:`Effect.apply_signal`, compiled filters of
@@ -89,7 +89,7 @@ class Effect:
         Input effects with a memory: ``start(t, x, theta, s) -> x'`` with the
         effect's state at ``t_0`` moved by ``s`` from where ``signal`` starts
         it.  A case cut from a longer run starts with the actuator in motion;
-        the diagnosis fits ``s`` per case (:func:`reachconf.diagnose.fit.window_residuals`).
+        the diagnosis fits ``s`` per case (:func:`reachconf.diagnose.fit.case_starts`).
     """
 
     name: str

@@ -73,6 +73,7 @@ class PreparedCase:
     offsets: np.ndarray | None = None  # compared steps within a window (1 ... length)
     idx: np.ndarray | None = None  # sample index of every compared prediction, window after window
     weight: float = 1.0  # multiplies the case's normalised residuals (``loss_scale = "case"``)
+    prefix_Y: np.ndarray | None = None  # compared samples before the first window, when ``Y`` holds only the windows'
 
     @property
     def per_window(self) -> int:
@@ -294,8 +295,9 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
     fit the residuals to it instead of to zero — with a reference run, the
     reference fit's residuals on the paired cases, so that the fit explains
     the change between the recordings (``reference_loss="difference"``).
-    A lag's state at the start of each case is a nuisance, fitted per case
-    in every evaluation (variable projection, :func:`window_residuals`).
+    A lag's state at the start of each case is a nuisance, chosen per case
+    in every evaluation on the samples before the case's first window
+    (:func:`case_starts`).
     """
     from scipy.optimize import least_squares
 
@@ -335,7 +337,7 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
     n_data = [None]
     def fun(x):
         m, eff = unpack(x)
-        r = window_residuals(m, cand, eff, train, sigma, options.substeps, target=target)
+        r = window_residuals(m, cand, eff, train, sigma, options.substeps)
         if target is not None:
             r = r - target
         n_data[0] = r.size

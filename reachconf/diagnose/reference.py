@@ -101,7 +101,7 @@ def difference_score(on_ref: Scored, prepared, ref, sigma, options):
         fr = on_ref.folds[f]
         s_cases, r_cases = [prepared[i] for i in idx], [ref[i] for i in idx]
         rr = window_residuals(fr.model, fr.candidate, fr.effect_params, r_cases, sigma, options.substeps)
-        rs = window_residuals(fit.model, fit.candidate, fit.effect_params, s_cases, sigma, options.substeps, target=rr)
+        rs = window_residuals(fit.model, fit.candidate, fit.effect_params, s_cases, sigma, options.substeps)
         return window_sums((rs - rr) ** 2, s_cases, p)
 
     return score

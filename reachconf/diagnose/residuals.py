@@ -3,10 +3,12 @@
 Every prediction window starts from the measured (smoothed) state and runs the
 model over the case's inputs as the candidate's input effects transform them;
 input effects with memory (a lag) start each case where it fits best
-(:func:`case_starts`).
+(:func:`case_starts`, chosen on the samples before its first window).
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -20,7 +22,7 @@ from reachconf.model.outputs import (
 )
 from reachconf_kernels.integrate import rk4_windows
 
-__all__ = ["case_starts", "received_inputs", "window_residuals"]
+__all__ = ["case_starts", "prefix_predictions", "received_inputs", "window_residuals"]
 
 #: a lag's start counts as decayed below this fraction: windows that begin later are not simulated again
 START_DECAYED = 1e-5
@@ -102,56 +104,96 @@ def _batch_residuals(model, comp, pv, direct, plain, outputs, theta_eff, items, 
     return out
 
 
-def _fit_starts(model, comp, pv, direct, plain, inputs, outputs, theta_eff, data, received, residuals, targets, sigma,
-                substeps):  # fmt: skip
-    """:func:`case_starts` for every case at once (the re-simulated windows batched); returns the residuals."""
+def _prefix(d):
+    """The case's samples before its first prediction window as one window from ``t_0`` (never scored), or None."""
+    first = int(d.starts[0]) if d.starts.size else 0
+    if first < 2:
+        return None
+    every = int(d.offsets[1] - d.offsets[0]) if d.offsets.size > 1 else 1
+    offs = np.arange(first, 0, -every, dtype=np.int64)[::-1]
+    Y = d.Y
+    if d.prefix_Y is not None:  # the case's Y holds only its windows' compared samples (pseudo-measurements)
+        Y = np.zeros((first + 1, np.shape(d.prefix_Y)[1]))
+        Y[offs] = d.prefix_Y
+    return replace(d, Y=Y, starts=np.zeros(1, dtype=np.int64), length=first, offsets=offs, idx=offs.copy(),
+                   prefix_Y=None)
+
+
+def prefix_predictions(model, cand, theta_eff: dict, data, sigma, substeps) -> list:
+    """Per case, the candidate's predictions of the compared samples before its first window (from ``t_0``, the
+    lag started as :func:`case_starts` chooses; measurement units), or None without such samples."""
+    found, _ = _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps)
+    inputs = cand.inputs
+    outputs = [(e, tgt) for e, tgt in cand.parts if e.kind == "output"]
+    items, where = [], []
+    for c, (d, st) in enumerate(zip(data, found)):
+        pre = _prefix(d)
+        if pre is not None:
+            items.append((pre, _received(model, inputs, d, theta_eff, st), 1))
+            where.append(c)
+    out = [None] * len(data)
+    if not items:
+        return out
+    res = _batch_residuals(model, model.compiled(), model.param_vector, output_index_of_states(model),
+                           state_index_of_outputs(model), outputs, theta_eff, items, sigma, substeps)  # fmt: skip
+    for c, (pre, _, _), r in zip(where, items, res):
+        Ym = np.asarray(pre.Y, dtype=float)[pre.idx]
+        out[c] = Ym + r.reshape(Ym.shape) * sigma / data[c].weight
+    return out
+
+
+def _fit_starts(model, comp, pv, direct, plain, inputs, outputs, theta_eff, data, received, residuals, sigma,
+                       substeps):  # fmt: skip
+    """:func:`case_starts` from each case's samples before its first window (prequential: the scored windows do not
+    choose their own start); returns the residuals."""
     free = [(e.name, tgt) for e, tgt in inputs if e.start is not None]
     cols = [model.input_names.index(tgt) for _, tgt in free]
-    heads = []  # (case number, windows to simulate again, [moved U], [steps])
+    heads = []  # (case number, prefix, windows to simulate again, [moved U], [steps])
     for c, (d, U0) in enumerate(zip(data, received)):
+        pre = _prefix(d)
+        if pre is None:
+            continue
         moved, steps = [], []
         for key, j in zip(free, cols):
             steps.append(1e-3 * (float(np.max(np.abs(d.U[: d.length, j]))) + 1e-9))
             moved.append(_received(model, inputs, d, theta_eff, {key: steps[-1]}))
-        # a start decays: only the windows that begin before it has (to START_DECAYED) are simulated again
         change = np.max([np.abs(Uk[:, j] - U0[:, j]) / h for Uk, h, j in zip(moved, steps, cols)], axis=0)
         seen = np.nonzero(change > START_DECAYED)[0]
         K = int(np.searchsorted(d.starts, seen[-1], side="right")) if seen.size else 0
-        if K > 0:
-            heads.append((c, K, moved, steps))
-    if not heads:
-        return residuals, [{} for _ in data]
-    args = (model, comp, pv, direct, plain, outputs, theta_eff)
-    sens = [_batch_residuals(*args, [(data[c], moved[k], K) for c, K, moved, _ in heads], sigma, substeps)
-            for k in range(len(free))]  # fmt: skip
+        heads.append((c, pre, K, moved, steps))
     found = [{} for _ in data]
+    if not heads:
+        return residuals, found
+    args = (model, comp, pv, direct, plain, outputs, theta_eff)
+    r0s = _batch_residuals(*args, [(pre, received[c], 1) for c, pre, _, _, _ in heads], sigma, substeps)
+    sens = [_batch_residuals(*args, [(pre, moved[k], 1) for _, pre, _, moved, _ in heads], sigma, substeps)
+            for k in range(len(free))]  # fmt: skip
     trial = []
-    for h, (c, K, _, steps) in enumerate(heads):
-        n = sens[0][h].size
-        r0 = residuals[c][:n]
+    for h, (c, pre, K, _, steps) in enumerate(heads):
+        r0 = r0s[h]
         S = np.column_stack([(sens[k][h] - r0) / steps[k] for k in range(len(free))])
-        r0 = r0 - targets[c][:n]  # the start explains what the fit is to explain
         if not np.all(np.isfinite(S)) or not np.any(S):
             continue
-        if S.shape[1] == 1:
-            ss = float(S[:, 0] @ S[:, 0])
-            coef = np.array([-float(S[:, 0] @ r0) / ss if ss > 0 else 0.0])
-        else:
-            coef = np.linalg.lstsq(S, -r0, rcond=None)[0]
-        gain = float(r0 @ r0) - float(np.sum((r0 + S @ coef) ** 2))  # predicted by the sensitivities
-        if np.all(np.isfinite(coef)) and gain > 0.0:
+        coef = np.linalg.lstsq(S, -r0, rcond=None)[0]
+        if np.all(np.isfinite(coef)) and float(r0 @ r0) - float(np.sum((r0 + S @ coef) ** 2)) > 0.0:
             found[c] = dict(zip(free, map(float, coef)))
-            trial.append((c, K))
-    if trial:
-        again = _batch_residuals(*args, [(data[c], _received(model, inputs, data[c], theta_eff, found[c]), K)
-                                         for c, K in trial], sigma, substeps)  # fmt: skip
-        for (c, _), r_head in zip(trial, again):
-            t = targets[c][: r_head.size]
-            r0 = residuals[c][: r_head.size]
-            if float((r_head - t) @ (r_head - t)) < float((r0 - t) @ (r0 - t)):  # kept only when it fits better
-                residuals[c] = np.concatenate([r_head, residuals[c][r_head.size :]])
-            else:
-                found[c] = {}
+            trial.append(h)
+    if not trial:
+        return residuals, found
+    moved_U = {heads[h][0]: _received(model, inputs, data[heads[h][0]], theta_eff, found[heads[h][0]]) for h in trial}
+    again = _batch_residuals(*args, [(heads[h][1], moved_U[heads[h][0]], 1) for h in trial], sigma, substeps)
+    redo = []
+    for h, r_pre in zip(trial, again):
+        c = heads[h][0]
+        if float(r_pre @ r_pre) < float(r0s[h] @ r0s[h]):  # kept only when it fits the prefix better
+            if heads[h][2] > 0:
+                redo.append((c, heads[h][2]))
+        else:
+            found[c] = {}
+    if redo:
+        new = _batch_residuals(*args, [(data[c], moved_U[c], K) for c, K in redo], sigma, substeps)
+        for (c, _), r_head in zip(redo, new):
+            residuals[c] = np.concatenate([r_head, residuals[c][r_head.size :]])
     return residuals, found
 
 
@@ -160,17 +202,28 @@ def case_starts(model, cand, theta_eff: dict, d, sigma, substeps):
 
     A case cut from a longer run starts with the actuator in motion, so a
     lag's state at ``t_0`` is unknown: it is a nuisance parameter of each case
-    (like the measured start state of every prediction window).  Its effect on
-    the residuals is linear up to the model's curvature: one sensitivity per
-    effect by a small step of the start (only the windows that begin before
-    the start has decayed), then least squares; kept only when it lowers the
-    case's loss.  Returns ``({(effect, target): offset}, residuals)``.
+    (like the measured start state of every prediction window).  It is chosen
+    on the case's samples *before* its first prediction window (the past that
+    :attr:`~reachconf.diagnose.options.DiagnoseOptions.start_state` ``"past"``
+    estimates the first start state from), predicted from ``t_0`` as one
+    window that is never scored — prequentially, so that a held-out score
+    never fits a nuisance to the windows it scores.  (Fitted on the scored
+    windows, where a short lag's start is seen only through
+    ``exp(-t_first / tau)``, the start of a 0.05-s lag came out tens of times
+    the steering range and absorbed the noise of those windows' start states,
+    a freedom a dead time does not have.)  Its effect on the prefix is linear
+    up to the model's curvature: one sensitivity per effect by a small step
+    of the start, then least squares; kept only when it lowers the prefix's
+    loss.  A case without samples before its first window (``start_state =
+    "centered"``) keeps the lag at rest.  Returns ``({(effect, target):
+    offset}, residuals)``; the residuals of the windows that begin before the
+    start has decayed (to ``START_DECAYED``) are simulated with it.
     """
     found, r = _starts_and_residuals(model, cand, theta_eff, [d], sigma, substeps)
     return found[0], r[0]
 
 
-def _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, fixed=None, target=None):
+def _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, fixed=None):
     comp = model.compiled()
     pv = model.param_vector
     direct = output_index_of_states(model)
@@ -186,16 +239,10 @@ def _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, fixed=N
                            substeps)  # fmt: skip
     if fixed is not None or not any(e.start is not None for e, _ in inputs):
         return [{} for _ in data], res
-    sizes = np.cumsum([0] + [r.size for r in res])
-    if target is not None and np.size(target) != sizes[-1]:
-        raise OptionsError(f"target: {sizes[-1]} values expected (laid out as the residuals), got {np.size(target)}")
-    targets = [np.zeros(r.size) for r in res] if target is None else [
-        np.asarray(target, dtype=float)[a:b] for a, b in zip(sizes[:-1], sizes[1:])]  # fmt: skip
-    res, found = _fit_starts(*args, inputs, outputs, theta_eff, data, received, res, targets, sigma, substeps)
-    return found, res
+    return _fit_starts(*args, inputs, outputs, theta_eff, data, received, res, sigma, substeps)[::-1]
 
 
-def window_residuals(model, cand, theta_eff: dict, data, sigma, substeps, starts=None, target=None):
+def window_residuals(model, cand, theta_eff: dict, data, sigma, substeps, starts=None):
     """Normalised multi-step prediction residuals of all windows of all cases (one flat array).
 
     Window after window (each ``length x p`` values), case after case.  An
@@ -203,9 +250,8 @@ def window_residuals(model, cand, theta_eff: dict, data, sigma, substeps, starts
     the prediction through itself: the residual stays in measurement units,
     so that an output scale cannot lower the loss by shrinking the residuals
     (``y / k - y_pred`` would, by ``1/k``).  An input effect with memory (a
-    lag) starts each case where it fits best (:func:`case_starts`), or
-    where ``starts`` (one dict per case, as :func:`case_starts` gives) says;
-    with ``target`` (laid out as the result), the start that brings the
-    residuals nearest to it (a fit that explains the change from a reference).
+    lag) starts each case where its samples before the first window say
+    (:func:`case_starts`), or where ``starts`` (one dict per case, as
+    :func:`case_starts` gives) says.
     """
-    return np.concatenate(_starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, starts, target)[1])
+    return np.concatenate(_starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, starts)[1])

@@ -29,6 +29,7 @@ from dataclasses import replace
 import numpy as np
 
 from reachconf.diagnose.fit import fit_candidate, window_losses, window_residuals
+from reachconf.diagnose.residuals import prefix_predictions
 
 __all__ = ["mimic_loss", "pseudo_measurements"]
 
@@ -38,15 +39,18 @@ def pseudo_measurements(fit, data, sigma, options) -> list:
 
     The copies keep the inputs, times and (measured) start states of every
     window; their ``Y`` holds only the compared samples (``idx`` becomes
-    ``0 .. n-1``), set to the predicted measurement (output effects applied).
+    ``0 .. n-1``), set to the predicted measurement (output effects applied);
+    the samples before the first window, which choose a lag's start, are
+    ``fit``'s predictions from ``t_0`` (``prefix_Y``).
     """
     r = window_residuals(fit.model, fit.candidate, fit.effect_params, data, sigma, options.substeps)
+    before = prefix_predictions(fit.model, fit.candidate, fit.effect_params, data, sigma, options.substeps)
     out, pos = [], 0
-    for d in data:
+    for d, pre in zip(data, before):
         n = d.idx.size * len(sigma)
         Ym = np.asarray(d.Y, dtype=float)[d.idx]
         pred = Ym + r[pos : pos + n].reshape(Ym.shape) * sigma / d.weight  # (residuals in measurement units)
-        out.append(replace(d, Y=pred, idx=np.arange(d.idx.size, dtype=np.int64)))
+        out.append(replace(d, Y=pred, idx=np.arange(d.idx.size, dtype=np.int64), prefix_Y=pre))
         pos += n
     return out
 
