@@ -27,7 +27,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 
 from reachconf.conformance import pareto_front, synthesize_W
 from reachconf.conformance.synthesis import PRELOAD

@@ -11,7 +11,6 @@ from protocol_eval import (
     choose_interval_method,
     choose_thresholds,
     coverage,
-    diagnose_job,
     generate_job,
     TUNING_RUN_THRESHOLDS,
     interleaved,

@@ -16,7 +16,6 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-import numpy as np
 
 from reachconf.datasets.vehicle_campaign import (
     NO_EFFECTS,
