@@ -22,7 +22,7 @@ from reachconf.model.outputs import (
 )
 from reachconf_kernels.integrate import rk4_windows
 
-__all__ = ["case_starts", "prefix_predictions", "received_inputs", "window_residuals"]
+__all__ = ["case_starts", "residuals_and_prefix", "received_inputs", "window_residuals"]
 
 #: a lag's start counts as decayed below this fraction: windows that begin later are not simulated again
 START_DECAYED = 1e-5
@@ -119,10 +119,11 @@ def _prefix(d):
                    prefix_Y=None)
 
 
-def prefix_predictions(model, cand, theta_eff: dict, data, sigma, substeps) -> list:
-    """Per case, the candidate's predictions of the compared samples before its first window (from ``t_0``, the
-    lag started as :func:`case_starts` chooses; measurement units), or None without such samples."""
-    found, _ = _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps)
+def residuals_and_prefix(model, cand, theta_eff: dict, data, sigma, substeps) -> tuple:
+    """:func:`window_residuals` and, per case, the candidate's predictions of the compared samples before its first
+    window (from ``t_0``, the lag started as :func:`case_starts` chooses; measurement units; None without such
+    samples) — from one choice of the starts."""
+    found, res = _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps)
     inputs = cand.inputs
     outputs = [(e, tgt) for e, tgt in cand.parts if e.kind == "output"]
     items, where = [], []
@@ -132,20 +133,20 @@ def prefix_predictions(model, cand, theta_eff: dict, data, sigma, substeps) -> l
             items.append((pre, _received(model, inputs, d, theta_eff, st), 1))
             where.append(c)
     out = [None] * len(data)
-    if not items:
-        return out
-    res = _batch_residuals(model, model.compiled(), model.param_vector, output_index_of_states(model),
-                           state_index_of_outputs(model), outputs, theta_eff, items, sigma, substeps)  # fmt: skip
-    for c, (pre, _, _), r in zip(where, items, res):
-        Ym = np.asarray(pre.Y, dtype=float)[pre.idx]
-        out[c] = Ym + r.reshape(Ym.shape) * sigma / data[c].weight
-    return out
+    if items:
+        pres = _batch_residuals(model, model.compiled(), model.param_vector, output_index_of_states(model),
+                                state_index_of_outputs(model), outputs, theta_eff, items, sigma, substeps)  # fmt: skip
+        for c, (pre, _, _), r in zip(where, items, pres):
+            Ym = np.asarray(pre.Y, dtype=float)[pre.idx]
+            out[c] = Ym + r.reshape(Ym.shape) * sigma / data[c].weight
+    return np.concatenate(res), out
 
 
 def _fit_starts(model, comp, pv, direct, plain, inputs, outputs, theta_eff, data, received, residuals, sigma,
-                       substeps):  # fmt: skip
+                substeps, every_case=True):  # fmt: skip
     """:func:`case_starts` from each case's samples before its first window (prequential: the scored windows do not
-    choose their own start); returns the residuals."""
+    choose their own start); returns the residuals and the starts.  ``every_case=False``: only the cases whose
+    windows a start reaches (the others' residuals do not depend on it; their starts are not reported)."""
     free = [(e.name, tgt) for e, tgt in inputs if e.start is not None]
     cols = [model.input_names.index(tgt) for _, tgt in free]
     heads = []  # (case number, prefix, windows to simulate again, [moved U], [steps])
@@ -160,7 +161,8 @@ def _fit_starts(model, comp, pv, direct, plain, inputs, outputs, theta_eff, data
         change = np.max([np.abs(Uk[:, j] - U0[:, j]) / h for Uk, h, j in zip(moved, steps, cols)], axis=0)
         seen = np.nonzero(change > START_DECAYED)[0]
         K = int(np.searchsorted(d.starts, seen[-1], side="right")) if seen.size else 0
-        heads.append((c, pre, K, moved, steps))
+        if K > 0 or every_case:
+            heads.append((c, pre, K, moved, steps))
     found = [{} for _ in data]
     if not heads:
         return residuals, found
@@ -223,7 +225,7 @@ def case_starts(model, cand, theta_eff: dict, d, sigma, substeps):
     return found[0], r[0]
 
 
-def _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, fixed=None):
+def _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, fixed=None, every_case=True):
     comp = model.compiled()
     pv = model.param_vector
     direct = output_index_of_states(model)
@@ -239,7 +241,7 @@ def _starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, fixed=N
                            substeps)  # fmt: skip
     if fixed is not None or not any(e.start is not None for e, _ in inputs):
         return [{} for _ in data], res
-    return _fit_starts(*args, inputs, outputs, theta_eff, data, received, res, sigma, substeps)[::-1]
+    return _fit_starts(*args, inputs, outputs, theta_eff, data, received, res, sigma, substeps, every_case)[::-1]
 
 
 def window_residuals(model, cand, theta_eff: dict, data, sigma, substeps, starts=None):
@@ -254,4 +256,6 @@ def window_residuals(model, cand, theta_eff: dict, data, sigma, substeps, starts
     (:func:`case_starts`), or where ``starts`` (one dict per case, as
     :func:`case_starts` gives) says.
     """
-    return np.concatenate(_starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, starts)[1])
+    # (the starts of cases whose windows a start does not reach are not needed here: not chosen)
+    return np.concatenate(_starts_and_residuals(model, cand, theta_eff, data, sigma, substeps, starts,
+                                                every_case=False)[1])

@@ -28,8 +28,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from reachconf.diagnose.fit import fit_candidate, window_losses, window_residuals
-from reachconf.diagnose.residuals import prefix_predictions
+from reachconf.diagnose.fit import fit_candidate, window_losses
+from reachconf.diagnose.residuals import residuals_and_prefix
 
 __all__ = ["mimic_loss", "pseudo_measurements"]
 
@@ -43,8 +43,7 @@ def pseudo_measurements(fit, data, sigma, options) -> list:
     the samples before the first window, which choose a lag's start, are
     ``fit``'s predictions from ``t_0`` (``prefix_Y``).
     """
-    r = window_residuals(fit.model, fit.candidate, fit.effect_params, data, sigma, options.substeps)
-    before = prefix_predictions(fit.model, fit.candidate, fit.effect_params, data, sigma, options.substeps)
+    r, before = residuals_and_prefix(fit.model, fit.candidate, fit.effect_params, data, sigma, options.substeps)
     out, pos = [], 0
     for d, pre in zip(data, before):
         n = d.idx.size * len(sigma)
