@@ -183,7 +183,7 @@ def _admissible(m: Scored, base: Scored, singles: dict, clusters, options, sprea
     if len(keys) == 1:
         refs = [base]
     else:
-        refs = [singles.get(frozenset({k})) for k in keys]
+        refs = [singles.get(frozenset({(e.name, tgt)})) for e, tgt in m.candidate.parts]  # (in a fixed order)
         if any(r is None for r in refs):
             return False, []
     tests = []
