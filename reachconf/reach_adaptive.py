@@ -42,7 +42,7 @@ error term).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -249,15 +249,14 @@ def run_adaptive(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=No
     splits) before it reaches the hard part.
     Every finished run is sound; the budget used is ``tube.log.budget`` and
     the budgets tried are in ``log.budgets_tried``.  Domain failures and the
-    step/memory limits are not retried (a smaller budget only costs more there).
+    step/memory limits are not retried (a smaller budget only costs more there).  On the last budget the step is
+    held where a smaller one cannot lower the error rate (:data:`reachconf_kernels.adaptive.FUTILE_SHRINK`).
     """
-    import dataclasses
-
     alg, tried = options.alg, []
     while True:
         try:
             run = _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=monitor, progress=progress,
-                            stopped=stopped)  # fmt: skip
+                            stopped=stopped, last=len(tried) >= alg.budget_retries)  # fmt: skip
         except ReachError as exc:
             retry = exc.term not in ("domain", "steps/memory") and len(tried) < alg.budget_retries
             tried.append(options.alg.error_budget)
@@ -267,8 +266,7 @@ def run_adaptive(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=No
                     exc.args = (f"{exc.args[0]} (error budgets tried, each from the start: {budgets})",)
                     exc.tried = {**(exc.tried or {}), "error_budgets": tried}
                 raise
-            options = dataclasses.replace(options, algorithm=dataclasses.replace(
-                options.alg, error_budget=0.5 * options.alg.error_budget),
+            options = replace(options, algorithm=replace(options.alg, error_budget=0.5 * options.alg.error_budget),
                 max_splits=max(min(1, options.effective_max_splits),
                             int(RETRY_SPLITS * options.effective_max_splits)))  # fmt: skip
             if progress is not None and hasattr(progress, "reset"):
@@ -279,7 +277,7 @@ def run_adaptive(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=No
 
 
 def _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=None, progress=None,
-              stopped=StopIteration) -> AdaptiveRun:  # fmt: skip
+              stopped=StopIteration, last=False) -> AdaptiveRun:  # fmt: skip
     """Adaptive reach of ``model`` from ``Z0`` over the sample grid ``samples``, with one error budget.
 
     ``U`` has one row per sample interval; steps end exactly at every sample
@@ -295,6 +293,7 @@ def _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=None,
     branch goes on over budget.
     """
     from reachconf_kernels import adaptive as ak
+    from reachconf_kernels.adaptive_split import split_choice
 
     n = model.n
     K = samples.size
@@ -328,6 +327,7 @@ def _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=None,
     ipar[ak.I_KAPPA_MODE] = kappa_mode
     ipar[ak.I_TAYLOR_MIN] = int(opts.taylor_terms)
     ipar[ak.I_MAX_ITER] = int(opts.max_error_iterations)
+    ipar[ak.I_LAST] = int(last)  # no smaller budget left: hold the step where smaller ones cannot lower the error rate
     max_splits = opts.effective_max_splits
     max_steps = int(opts.alg.max_steps)
     mem_limit = MEMORY_SHARE * available_memory()
@@ -397,7 +397,7 @@ def _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=None,
             if code == ak.CHUNK:
                 continue
             if code in (ak.SPLIT, ak.FAIL) and can_split and G.shape[1] > 0:
-                rate, jk, rk, jo, ro = ak.split_choice(
+                rate, jk, rk, jo, ro = split_choice(
                     np.ascontiguousarray(c), np.ascontiguousarray(G), U[min(k, K - 2)], wc, WG, params, comp.hess,
                     comp.lagrange_iv, int(max(state[ak.S_KAPPA], 2)), fpar, float(state[ak.S_DT]), task.keep,
                     SPLIT_CANDIDATES)  # fmt: skip

@@ -30,6 +30,10 @@ reachability analysis of nonlinear systems", HSCC 2021 (CORA's
   set's generators are kept (splits halve them).  Intermediate sets use the
   fixed intermediate and error orders (error-bounded reduction of the large
   ``quad_map`` outputs cost twice Girard's and changed little).
+* **last budget** (no retry with a smaller one left): the time-interval set
+  keeps at least the start set's generators, and a step is not made
+  smaller where that cannot lower its rate (``FUTILE_SHRINK``): the run
+  goes on over budget instead of giving up at the smallest step.
 * **Taylor terms**: the first neglected term of ``e^{|A| dt}`` below 1 %
   (at least ``taylor_min``; the remainder is bounded either way).
 
@@ -82,15 +86,21 @@ N_REC = 10
  P_DIST_W) = range(17)
 N_FPAR = 17
 # ipar entries
-I_KAPPA_MODE, I_HAVE3, I_TAYLOR_MIN, I_MAX_ITER, I_CAN_SPLIT, I_KEEP = range(6)
-N_IPAR = 6
+I_KAPPA_MODE, I_HAVE3, I_TAYLOR_MIN, I_MAX_ITER, I_CAN_SPLIT, I_KEEP, I_LAST = range(7)
+N_IPAR = 7
 # state entries (carried between calls of one branch)
 (S_DT, S_KAPPA, S_SINCE_CHECK, S_MIN_DT, S_MAX_KAPPA, S_FAIL_CODE, S_FAIL_STATE, S_FAIL_TERM, S_SPENT, S_FLOOR,
- S_FLOOR_AGE, S_FLOOR_KAPPA, S_FLOOR_RATE) = range(13)
-N_STATE = 13
+ S_FLOOR_AGE, S_FLOOR_KAPPA, S_FLOOR_RATE, S_FLOOR_LIM) = range(14)
+N_STATE = 14
 #: A computed error floor is reused for up to this many accepted-at-first-try steps while the error rate stays
 #: within 10 % of the rate it was computed at (it changes slowly with the set); a rejected step recomputes it.
 FLOOR_REUSE = 8
+#: On the last error budget (``ipar[I_LAST]``: no retry with a smaller one is left, only giving up), a step is not
+#: made smaller when its rate is within this factor of the floor's limit for ``dt -> 0`` (the floor's error over the
+#: set's own radius, :func:`floor_rates`): smaller steps cannot lower the rate below that limit, and where the error
+#: widens the set within a step as much as its radius they raise it (the set they divide by is smaller).  Without
+#: it the step shrank to its limit, and the reach gave up, on sets whose floor is over budget.
+FUTILE_SHRINK = 1.05
 #: Largest reduction tolerance per step (fraction of the hull diagonal).
 MAX_RED_TOL = 1e-3
 
@@ -190,12 +200,21 @@ def error_floor(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, err_order, err_tol
 
 
 @njit(cache=True)
-def _floor_rate(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt):
+def floor_rates(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt):
+    """The error floor as a rate (``relative_rate`` of :func:`error_floor`) at the step ``dt``, and its limit for
+    ``dt -> 0`` (the floor over the set's own radius: what a step's rate tends to as the step shrinks)."""
     err_tol = math.sqrt(min(MAX_RED_TOL, max(fpar[P_RED_SHARE] * fpar[P_BUDGET] * dt, 0.0)))
     e0, st = error_floor(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar[P_ERR_ORDER], err_tol)
     if st != 0:
-        return np.inf
-    return relative_rate(e0, row_radius(G), dt)
+        return np.inf, np.inf
+    rad = row_radius(G)
+    return relative_rate(e0, rad, dt), relative_rate(e0, rad, 0.0)
+
+
+@njit(cache=True)
+def floor_rate(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt):
+    """The error floor as a rate at the step ``dt`` (the first of :func:`floor_rates`)."""
+    return floor_rates(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt)[0]
 
 
 _i8 = types.int64
@@ -243,6 +262,7 @@ def adaptive_run(
     split_frac = fpar[P_SPLIT_FRAC]
     kmode = ipar[I_KAPPA_MODE]
     have3 = ipar[I_HAVE3] != 0
+    last = ipar[I_LAST] != 0
     inf_err = np.full(n, np.inf)
     info = np.zeros(4, dtype=np.int64)
     gneed = int(n * fpar[P_MAX_ORDER]) + 2 * n + 2
@@ -255,11 +275,11 @@ def adaptive_run(
         kappa = 2 if kmode == 0 else kmode
         if kmode == 0 and k < K - 1:
             dt0 = min(state[S_DT], dt_max, samples[k + 1] - t)
-            rho2 = _floor_rate(c, G, U[k], wc, WG, p, hess, lagrange_iv, 2, fpar, dt0)
+            rho2 = floor_rate(c, G, U[k], wc, WG, p, hess, lagrange_iv, 2, fpar, dt0)
             if rho2 > 0.3 * beta:
                 if not have3:
                     return NEED_ORDER3, t, k, c, G
-                rho3 = _floor_rate(c, G, U[k], wc, WG, p, hess, lagrange_iv, 3, fpar, dt0)
+                rho3 = floor_rate(c, G, U[k], wc, WG, p, hess, lagrange_iv, 3, fpar, dt0)
                 if rho3 < 0.9 * rho2:
                     kappa = 3
         state[S_KAPPA] = kappa
@@ -288,6 +308,7 @@ def adaptive_run(
         f(zq, p, fz)
         w_rate = relative_rate(np.abs(BW).sum(axis=1), row_radius(G), 0.0)  # the disturbance's growth rate
         rho0 = -1.0
+        rho_lim = -1.0
         tries = 0
         state[S_FAIL_CODE] = 0.0
         last_e = np.zeros(n)
@@ -309,9 +330,13 @@ def adaptive_run(
             state[S_MAX_KAPPA] = max(state[S_MAX_KAPPA], kappa)
             r = taylor_terms_for(A, dt, ipar[I_TAYLOR_MIN])
             red_tol = min(MAX_RED_TOL, fpar[P_RED_SHARE] * beta * dt)
+            # on the last budget the time-interval set keeps at least as many generators as the start set: reduced
+            # below it, it loses the correlations that bound the remainder's affine parts, and the step's error stays
+            # above the floor however small the step (measured: 1.3-3.5 times the floor on the rate-limited steering)
+            inter = max(fpar[P_INTER_ORDER], (G.shape[1] + n) / n) if last else fpar[P_INTER_ORDER]
             ctp, Gtp, cti, Gti, e, st, bs, bt = nonlinear_step(
                 c, G, u, wc, WG, p, dt, r, f, jac, hess, lagrange_iv,
-                0, kappa, fpar[P_MAX_ORDER], fpar[P_INTER_ORDER], fpar[P_ERR_ORDER], 0,
+                0, kappa, fpar[P_MAX_ORDER], inter, fpar[P_ERR_ORDER], 0,
                 ipar[I_MAX_ITER], inf_err, err_warm, fpar[P_ROUND], red_tol, ipar[I_KEEP], info,
             )  # fmt: skip
             if st != OK:
@@ -339,30 +364,34 @@ def adaptive_run(
                         and kappa == state[S_FLOOR_KAPPA]
                         and abs(rho - state[S_FLOOR_RATE]) <= 0.1 * state[S_FLOOR_RATE]):  # fmt: skip
                     rho0 = state[S_FLOOR]
+                    rho_lim = state[S_FLOOR_LIM]
                 else:
-                    rho0 = _floor_rate(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt)
+                    rho0, rho_lim = floor_rates(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt)
                     state[S_FLOOR] = rho0
                     state[S_FLOOR_AGE] = 0.0
                     state[S_FLOOR_KAPPA] = kappa
                     state[S_FLOOR_RATE] = rho
+                    state[S_FLOOR_LIM] = rho_lim
             # the floor is over budget: order 3 if it lowers the floor (asked when the floor was computed, not reused)
             dist = w_rate > fpar[P_DIST_W] * rho  # the set grows mostly by the disturbance
             if rho0 > split_frac * beta and kappa == 2 and kmode == 0 and (state[S_FLOOR_AGE] == 0.0 or not dist):
                 if not have3:
                     state[S_DT] = dt
                     return NEED_ORDER3, t, k, c, G
-                rho3 = _floor_rate(c, G, u, wc, WG, p, hess, lagrange_iv, 3, fpar, dt)
+                rho3, lim3 = floor_rates(c, G, u, wc, WG, p, hess, lagrange_iv, 3, fpar, dt)
                 if rho3 < 0.9 * rho0:
                     kappa = 3
                     rho0 = rho3
+                    rho_lim = lim3
                     state[S_FLOOR] = rho3
+                    state[S_FLOOR_LIM] = lim3
                     state[S_FLOOR_AGE] = 0.0
                     state[S_FLOOR_KAPPA] = 3
                     state[S_FLOOR_RATE] = np.inf  # recomputed at the next step
                     continue
             # goal: the rate at the budget, or, where the floor alone is near it, the floor plus a share of it
             goal = max(beta, rho0 + max(fpar[P_EXCESS] * beta, fpar[P_EXCESS_REL] * rho0))
-            if rho > 1.05 * goal and dt > 4.0 * dt_min:
+            if rho > 1.05 * goal and dt > 4.0 * dt_min and not (last and rho <= FUTILE_SHRINK * rho_lim):
                 dt *= min(0.9, max(0.1, 0.9 * (goal - rho0) / max(rho - rho0, 1e-300)))
                 continue
             if rho0 <= split_frac * beta:
@@ -409,7 +438,9 @@ def adaptive_run(
         base = max(dt, dt_prop) if dt >= rem * (1.0 - 1e-12) and tries == 1 else dt
         if rho0 >= 0.0:
             goal = max(beta, rho0 + max(fpar[P_EXCESS] * beta, fpar[P_EXCESS_REL] * rho0))
-            if rho > rho0:
+            if last and rho > goal and rho <= FUTILE_SHRINK * rho_lim:
+                state[S_DT] = base  # smaller steps cannot lower the rate (FUTILE_SHRINK): hold the step
+            elif rho > rho0:
                 state[S_DT] = base * min(2.0, max(0.5, 0.9 * (goal - rho0) / (rho - rho0)))
             else:
                 state[S_DT] = 2.0 * base
@@ -434,8 +465,8 @@ def adaptive_run(
             over = state[S_FLOOR] > split_frac * beta and w_rate > fpar[P_DIST_W] * rho
             if state[S_SINCE_CHECK] >= 10 and (rho < 0.5 * beta or over):
                 state[S_SINCE_CHECK] = 0
-                rho2 = _floor_rate(ctp, Gtp, u, wc, WG, p, hess, lagrange_iv, 2, fpar, dt)
-                if rho2 <= 0.3 * beta or (over and rho2 * 0.9 <= _floor_rate(
+                rho2 = floor_rate(ctp, Gtp, u, wc, WG, p, hess, lagrange_iv, 2, fpar, dt)
+                if rho2 <= 0.3 * beta or (over and rho2 * 0.9 <= floor_rate(
                         ctp, Gtp, u, wc, WG, p, hess, lagrange_iv, 3, fpar, dt)):  # fmt: skip
                     kappa = 2
         state[S_KAPPA] = kappa
@@ -443,56 +474,3 @@ def adaptive_run(
         c = ctp
         G = np.ascontiguousarray(Gtp)
     return DONE, t, k, c, G
-
-
-@njit(cache=True)
-def _halves(c, G, j):
-    g = G[:, j].copy()
-    Gh = G.copy()
-    Gh[:, j] = 0.5 * g
-    return c - 0.5 * g, c + 0.5 * g, Gh
-
-
-@njit(cache=True)
-def _halves_rate(c, G, j, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt):
-    ca, cb, Gh = _halves(c, G, j)
-    ra = _floor_rate(ca, Gh, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt)
-    rb = _floor_rate(cb, Gh, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt)
-    return max(ra, rb)
-
-
-@njit((f8_1, f8_2, f8_1, f8_1, f8_2, f8_1, FN_POINT_T3, FN_IV_REMAINDER, _i8, f8_1, _f8, _i8, _i8), cache=True)
-def split_choice(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt, keep, candidates):
-    """Which generator to halve, judged by the error floor of the halves.
-
-    Returns ``(rate, j_keep, rate_keep, j_other, rate_other)``: the floor of
-    ``Z(c, G)`` itself; the best of the first ``keep`` generators (the images
-    of the start set's generators: halving one of them here is what halving
-    it at the start does, to first order) and its halves' floor; the best of
-    the ``candidates`` other generators that are longest relative to the hull.
-    ``j = -1`` where there is no candidate.
-    """
-    n, m = G.shape
-    rate = _floor_rate(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt)
-    j_keep, r_keep = -1, np.inf
-    for j in range(min(keep, m)):
-        r = _halves_rate(c, G, j, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt)
-        if r < r_keep:
-            j_keep, r_keep = j, r
-    lo, hi = Z.interval_hull(c, G)
-    score = np.zeros(m)
-    for j in range(keep, m):
-        for i in range(n):
-            w = hi[i] - lo[i]
-            if w > 0.0:
-                score[j] += abs(G[i, j]) / w
-    order = np.argsort(-score)
-    j_other, r_other = -1, np.inf
-    for a in range(min(candidates, m - keep)):
-        j = order[a]
-        if score[j] <= 0.0:
-            break
-        r = _halves_rate(c, G, j, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt)
-        if r < r_other:
-            j_other, r_other = j, r
-    return rate, j_keep, r_keep, j_other, r_other

@@ -53,3 +53,31 @@ def test_rate_limited_closed_loop_at_the_rate_limit_sound(saturated_runs, option
     tube = rc.reach(model, X0, TIMES, inputs=inputs, W=W, options=options)
     _assert_tube_contains(tube, X, td, Xd)
     _assert_tight(tube, X)
+
+
+# -- the adaptive default where smaller steps cannot lower the error rate: five times the set and the disturbance, a
+# 25 m lane change over 2 s.  With the first two error budgets the step shrinks to its limit and the run gives up
+# (the error floor is over budget and the set grows mostly by W, so a split cannot help); on the last budget the
+# time-interval set keeps the start set's generators and the step is held where a smaller one cannot lower the rate
+# (``reachconf_kernels.adaptive.FUTILE_SHRINK``).  Before, all three budgets gave up (at 0.69 s on the first, 0.50 s
+# with 2.5 times X0 and W, 0.025 s with five times) where order 2 with 10-ms steps reached the end.
+WIDE_TIMES = np.round(np.arange(0.0, 2.0 + 1e-9, 0.1), 10)
+X0_WIDE = rc.Interval(X_START - 5 * X0_RADIUS, X_START + 5 * X0_RADIUS)
+W_WIDE = rc.Interval(-5 * W_RADIUS, 5 * W_RADIUS)
+
+
+@pytest.fixture(scope="module")
+def wide_runs():
+    rng = np.random.default_rng(RNG_SEED + 1)
+    model = bicycle_closed_loop_rate_limited()
+    inputs = lane_change_reference(WIDE_TIMES, start=3.0, length=25.0)
+    return model, inputs, _simulate_many(model, X0_WIDE, WIDE_TIMES, W_WIDE, inputs, 200, rng, dense=2)
+
+
+def test_adaptive_default_reaches_the_end_on_its_last_budget_and_is_sound(wide_runs):
+    model, inputs, (X, td, Xd) = wide_runs
+    tube = rc.reach(model, X0_WIDE, WIDE_TIMES, inputs=inputs, W=W_WIDE)
+    assert tube.times[-1] == pytest.approx(2.0)
+    assert list(tube.log.budgets_tried) == pytest.approx([0.7, 0.35, 0.175])  # the last budget is the one that held
+    _assert_tube_contains(tube, X, td, Xd)
+    _assert_tight(tube, X)
