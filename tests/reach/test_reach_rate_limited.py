@@ -59,8 +59,8 @@ def test_rate_limited_closed_loop_at_the_rate_limit_sound(saturated_runs, option
 # 25 m lane change over 2 s.  With the first two error budgets the step shrinks to its limit and the run gives up
 # (the error floor is over budget and the set grows mostly by W, so a split cannot help); on the last budget the
 # time-interval set keeps the start set's generators and the step is held where a smaller one cannot lower the rate
-# (``reachconf_kernels.adaptive.FUTILE_SHRINK``).  Before, all three budgets gave up (at 0.69 s on the first, 0.50 s
-# with 2.5 times X0 and W, 0.025 s with five times) where order 2 with 10-ms steps reached the end.
+# (``reachconf_kernels.adaptive.FUTILE_SHRINK``).  Before, all three budgets gave up (the last at 0.76 s) where order 2
+# with 10-ms steps reaches the end; with 2.5 and 5 times these X0 and W over 2.5 s, at 0.50 s and 0.025 s.
 WIDE_TIMES = np.round(np.arange(0.0, 2.0 + 1e-9, 0.1), 10)
 X0_WIDE = rc.Interval(X_START - 5 * X0_RADIUS, X_START + 5 * X0_RADIUS)
 W_WIDE = rc.Interval(-5 * W_RADIUS, 5 * W_RADIUS)
