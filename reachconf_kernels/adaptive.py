@@ -309,6 +309,7 @@ def adaptive_run(
         w_rate = relative_rate(np.abs(BW).sum(axis=1), row_radius(G), 0.0)  # the disturbance's growth rate
         rho0 = -1.0
         rho_lim = -1.0
+        futile = False  # last budget and the rate within FUTILE_SHRINK of the floor's dt -> 0 limit
         tries = 0
         state[S_FAIL_CODE] = 0.0
         last_e = np.zeros(n)
@@ -391,7 +392,8 @@ def adaptive_run(
                     continue
             # goal: the rate at the budget, or, where the floor alone is near it, the floor plus a share of it
             goal = max(beta, rho0 + max(fpar[P_EXCESS] * beta, fpar[P_EXCESS_REL] * rho0))
-            if rho > 1.05 * goal and dt > 4.0 * dt_min and not (last and rho <= FUTILE_SHRINK * rho_lim):
+            futile = last and rho <= FUTILE_SHRINK * rho_lim
+            if rho > 1.05 * goal and dt > 4.0 * dt_min and not futile:
                 dt *= min(0.9, max(0.1, 0.9 * (goal - rho0) / max(rho - rho0, 1e-300)))
                 continue
             if rho0 <= split_frac * beta:
@@ -438,7 +440,7 @@ def adaptive_run(
         base = max(dt, dt_prop) if dt >= rem * (1.0 - 1e-12) and tries == 1 else dt
         if rho0 >= 0.0:
             goal = max(beta, rho0 + max(fpar[P_EXCESS] * beta, fpar[P_EXCESS_REL] * rho0))
-            if last and rho > goal and rho <= FUTILE_SHRINK * rho_lim:
+            if futile and rho > goal:
                 state[S_DT] = base  # smaller steps cannot lower the rate (FUTILE_SHRINK): hold the step
             elif rho > rho0:
                 state[S_DT] = base * min(2.0, max(0.5, 0.9 * (goal - rho0) / (rho - rho0)))
