@@ -64,6 +64,7 @@ from reachconf_kernels.nonlinear import (
     row_radius,
 )
 from reachconf_kernels.reduce_adaptive import reduce_adaptive
+from reachconf_kernels.small_linalg import mat_mat
 from reachconf_kernels.signatures import FN_IV_REMAINDER, FN_POINT_MAT, FN_POINT_T3, FN_POINT_VEC, f8_1, f8_2
 
 # return codes of adaptive_run (the step's own codes 1..4 come back in fail[0])
@@ -304,7 +305,7 @@ def adaptive_run(
         J = np.zeros((n, zq.shape[0]))
         jac(zq, p, J)
         A = np.ascontiguousarray(J[:, :n])
-        BW, fz = np.ascontiguousarray(J[:, n + u.shape[0] :]) @ WG, np.empty(n)
+        BW, fz = mat_mat(J[:, n + u.shape[0] :], WG), np.empty(n)
         f(zq, p, fz)
         w_rate = relative_rate(np.abs(BW).sum(axis=1), row_radius(G), 0.0)  # the disturbance's growth rate
         rho0 = -1.0

@@ -35,6 +35,7 @@ import numpy as np
 from numba import njit
 
 from reachconf_kernels.linsys import exp_remainder, taylor_powers
+from reachconf_kernels.small_linalg import abs_row_sums_of_product, mat_vec
 
 
 @njit(cache=True)
@@ -65,11 +66,11 @@ def linear_excess(A, BW, fc, rad, dt, r):
     """
     P = taylor_powers(A, dt, r)  # P[k] = (A dt)^k / k!
     E = exp_remainder(A, dt, r)
-    e = E @ (0.5 * dt * np.abs(fc) + rad)
+    e = mat_vec(E, 0.5 * dt * np.abs(fc) + rad)
     if BW.shape[1] > 0:
-        e += (E * dt) @ np.abs(BW).sum(axis=1)
+        e += mat_vec(E * dt, np.abs(BW).sum(axis=1))
         for k in range(1, r + 1):
-            e += (2.0 * dt / (k + 1)) * np.abs(P[k] @ BW).sum(axis=1)
+            e += (2.0 * dt / (k + 1)) * abs_row_sums_of_product(P[k], BW)
     return e
 
 

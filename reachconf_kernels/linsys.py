@@ -22,6 +22,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from reachconf_kernels.small_linalg import abs_mat_vec, mat_mat, mat_vec
+
 #: Relative inflation applied to computed remainder bounds (rounding allowance).
 ROUND = 1e-12
 
@@ -41,8 +43,26 @@ def taylor_powers(A, dt, r):
     P = np.empty((r + 2, n, n))
     P[0] = np.eye(n)
     for i in range(1, r + 2):
-        P[i] = (P[i - 1] @ A) * (dt / i)
+        s = dt / i
+        for a in range(n):
+            for b in range(n):
+                acc = 0.0
+                for k in range(n):
+                    acc += P[i - 1, a, k] * A[k, b]
+                P[i, a, b] = acc * s
     return P
+
+
+@njit(cache=True)
+def _next_term(term, absA, i, out):
+    """``out = (term @ absA) / i``."""
+    n = term.shape[0]
+    for a in range(n):
+        for b in range(n):
+            acc = 0.0
+            for k in range(n):
+                acc += term[a, k] * absA[k, b]
+            out[a, b] = acc / i
 
 
 @njit(cache=True)
@@ -55,18 +75,27 @@ def exp_remainder(A, dt, r):
     n = A.shape[0]
     absA = np.abs(A) * dt
     term = np.eye(n)
+    nxt = np.empty((n, n))
     for i in range(1, r + 1):
-        term = (term @ absA) / i
+        _next_term(term, absA, i, nxt)
+        term, nxt = nxt, term
     W = np.zeros((n, n))
+    # an entry of term @ absA is at most max(term) times a column sum of absA: the larger of the column and row
+    # norms bounds the ratio of consecutive terms' largest entries
     norm = 0.0
     for i in range(n):
         s = 0.0
+        sc = 0.0
         for j in range(n):
             s += absA[i, j]
-        norm = max(norm, s)
+            sc += absA[j, i]
+        norm = max(norm, s, sc)
     for i in range(r + 1, r + 41):
-        term = (term @ absA) / i
-        W += term
+        _next_term(term, absA, i, nxt)
+        term, nxt = nxt, term
+        for a in range(n):
+            for b in range(n):
+                W[a, b] += term[a, b]
     # tail i > r + 40: geometric bound with ratio norm / (r + 42)
     ratio = norm / (r + 42)
     tmax = 0.0
@@ -140,13 +169,13 @@ def interval_matrix_times_zonotope(M_c, M_r, c, G):
     The result is ``M_c Z`` plus a box of radius ``M_r (|c| + sum|g|)``.
     """
     n = c.shape[0]
-    cc = M_c @ c
-    GG = M_c @ G
+    cc = mat_vec(M_c, c)
+    GG = mat_mat(M_c, G)
     absz = np.abs(c).copy()
     for j in range(G.shape[1]):
         for i in range(n):
             absz[i] += abs(G[i, j])
-    rad = (M_r @ absz) * (1.0 + ROUND)
+    rad = mat_vec(M_r, absz) * (1.0 + ROUND)
     # rounding of the float products M_c Z
     for i in range(n):
         s = 0.0
@@ -159,8 +188,8 @@ def interval_matrix_times_zonotope(M_c, M_r, c, G):
 @njit(cache=True)
 def interval_matrix_times_vector(M_c, M_r, v):
     """Box ``(centre, radius)`` enclosing ``[M_c - M_r, M_c + M_r] v``."""
-    cc = M_c @ v
-    rad = M_r @ np.abs(v)
+    cc = mat_vec(M_c, v)
+    rad = abs_mat_vec(M_r, np.abs(v))
     n = cc.shape[0]
     for i in range(n):
         s = 0.0
@@ -178,12 +207,13 @@ def particular_constant(T, E, dt, u):
     """
     n = T.shape[1]
     c = np.zeros(n)
+    absu = np.abs(u)
     for i in range(T.shape[0]):
-        c += T[i] @ u
-    rad = (E * dt) @ np.abs(u)
+        c += mat_vec(T[i], u)
+    rad = mat_vec(E * dt, absu)
     s = np.zeros(n)
     for i in range(T.shape[0]):
-        s += np.abs(T[i]) @ np.abs(u)
+        s += abs_mat_vec(T[i], absu)
     rad = rad * (1.0 + ROUND) + s * 4e-16 * (T.shape[0] * n + 1)
     return c, rad
 
@@ -206,8 +236,8 @@ def particular_varying(T, E, dt, c, G, keep_terms=-1):
     GG = np.empty((n, kept * m))
     boxed = np.zeros(n)
     for i in range(terms):
-        cc += T[i] @ c
-        TG = T[i] @ G
+        cc += mat_vec(T[i], c)
+        TG = mat_mat(T[i], G)
         if i < kept:
             GG[:, i * m : (i + 1) * m] = TG
         else:
@@ -218,10 +248,10 @@ def particular_varying(T, E, dt, c, G, keep_terms=-1):
     for j in range(m):
         for i in range(n):
             absz[i] += abs(G[i, j])
-    rad = (E * dt) @ absz
+    rad = mat_vec(E * dt, absz)
     s = np.zeros(n)
     for i in range(terms):
-        s += np.abs(T[i]) @ absz
+        s += abs_mat_vec(T[i], absz)
     # the boxed sums carry the summation's rounding (m + n terms) on top of the products' (the s term)
     rad = rad * (1.0 + ROUND) + boxed * (1.0 + 4e-16 * (m + n + 2)) + s * 4e-16 * (n + 2)
     return cc, GG, rad

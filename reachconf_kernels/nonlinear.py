@@ -37,6 +37,7 @@ from numba import njit, types
 
 from reachconf_kernels import zonotope as Z
 from reachconf_kernels.reduce_adaptive import reduce_adaptive
+from reachconf_kernels.small_linalg import mat_mat, mat_vec
 from reachconf_kernels.signatures import (
     FN_IV_REMAINDER,
     FN_POINT_MAT,
@@ -99,7 +100,8 @@ def _add_box(c, G, rad):
     j = G.shape[1]
     for i in range(n):
         if rad[i] > 0.0:
-            out[:, j] = 0.0
+            for r in range(n):
+                out[r, j] = 0.0
             out[i, j] = rad[i]
             j += 1
     return c.copy(), out
@@ -247,7 +249,7 @@ def nonlinear_step(
     Cs_c, Cs_G, Cs_rad = interval_matrix_times_zonotope(F_c, F_r, cd, G)
     Ci_c, Ci_rad = interval_matrix_times_vector(G_c, G_r, f0)
     cti_lin, Gti_lin = _add_box(ce + Cs_c + Ci_c, _hcat(Ge, Cs_G), Cs_rad + Ci_rad)
-    PU_c, PU_G, PU_rad = particular_varying(T, E, dt, np.zeros(n), B @ WG)
+    PU_c, PU_G, PU_rad = particular_varying(T, E, dt, np.zeros(n), mat_mat(B, WG))
     PU_c, PU_G = _add_box(PU_c, PU_G, PU_rad)
     ctp_lin = ctp_lin + PU_c
     Gtp_lin = _hcat(Gtp_lin, PU_G)
@@ -330,7 +332,7 @@ def nonlinear_step(
     for it in range(max_iter):
         info[0] = it + 1
         applied = err * 1.1
-        rad_v = Tabs @ applied
+        rad_v = mat_vec(Tabs, applied)
         if algorithm == 1:
             xlo = s_lo + d_lo - rad_v
             xhi = s_hi + d_hi + rad_v

@@ -184,11 +184,13 @@ def reduce_adaptive(c, G, tol, max_order, keep=0, outlier=OUTLIER):
     k = 0
     for j in range(m):
         if not boxed[j]:
-            out[:, k] = G[:, j]
+            for r in range(n):
+                out[r, k] = G[r, j]
             k += 1
     for i in range(n):
         if box[i] > 0.0:
-            out[:, k] = 0.0
+            for r in range(n):
+                out[r, k] = 0.0
             out[i, k] = np.nextafter(box[i] * (1.0 + (m + 1) * _EPS), np.inf)
             k += 1
     return c.copy(), out

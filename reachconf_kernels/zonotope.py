@@ -15,6 +15,8 @@ import math
 import numpy as np
 from numba import njit
 
+from reachconf_kernels.small_linalg import mat_mat
+
 _EPS = 2.220446049250313e-16
 
 
@@ -187,7 +189,8 @@ def reduce_girard(c, G, order):
         k = 0
         for j in range(m):
             if score[j] >= 0.0:
-                out[:, k] = G[:, j]
+                for r in range(n):
+                    out[r, k] = G[r, j]
                 k += 1
         return c.copy(), out
     n_keep = int(math.floor(n * (order - 1.0)))
@@ -211,14 +214,16 @@ def reduce_girard(c, G, order):
         if sj > thr or (sj == thr and ties > 0):
             if sj == thr:
                 ties -= 1
-            out[:, k] = G[:, j]
+            for r in range(n):
+                out[r, k] = G[r, j]
             k += 1
         else:
             for i in range(n):
                 box[i] += abs(G[i, j])
     for i in range(n):
         if box[i] > 0.0:
-            out[:, k] = 0.0
+            for r in range(n):
+                out[r, k] = 0.0
             out[i, k] = _up(box[i] * (1.0 + (m + 1) * _EPS))
             k += 1
     return c.copy(), out[:, :k]
@@ -275,11 +280,18 @@ def enclose(c1, G1, c2, G2):
 
 
 @njit(cache=True)
-def _is_zero(Q):
-    for v in Q.ravel():
-        if v != 0.0:
-            return False
+def _is_zero(Q, i):
+    for a in range(Q.shape[1]):
+        for b in range(Q.shape[2]):
+            if Q[i, a, b] != 0.0:
+                return False
     return True
+
+
+@njit(cache=True)
+def _bilinear(Q, i, Z1, Z2):
+    """``Z1.T @ Q[i] @ Z2`` with plain loops."""
+    return mat_mat(Z1.T, mat_mat(Q[i], Z2))
 
 
 @njit(cache=True)
@@ -295,9 +307,9 @@ def quad_map(c, G, Q):
     cout = np.zeros(k)
     Gout = np.zeros((k, ng))
     for i in range(k):
-        if _is_zero(Q[i]):
+        if _is_zero(Q, i):
             continue
-        Qh = Zm.T @ (Q[i] @ Zm)
+        Qh = _bilinear(Q, i, Zm, Zm)
         cout[i] = Qh[0, 0]
         for j in range(1, m + 1):
             cout[i] += 0.5 * Qh[j, j]
@@ -326,9 +338,9 @@ def quad_map_mixed(c1, G1, c2, G2, Q):
     cout = np.zeros(k)
     Gout = np.zeros((k, (m1 + 1) * (m2 + 1) - 1))
     for i in range(k):
-        if _is_zero(Q[i]):
+        if _is_zero(Q, i):
             continue
-        Qh = Z1.T @ (Q[i] @ Z2)
+        Qh = _bilinear(Q, i, Z1, Z2)
         cout[i] = Qh[0, 0]
         col = 0
         for a in range(m1 + 1):
