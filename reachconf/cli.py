@@ -33,6 +33,7 @@ import threading
 from pathlib import Path
 
 from reachconf import commands
+from reachconf.blas_threads import one_blas_thread
 from reachconf.cli_cases import add_pool_options, apply_worker_timeout, pool_settings
 from reachconf.errors import DataError, ReachconfError
 
@@ -464,7 +465,8 @@ def main(argv=None) -> int:
         apply_worker_timeout(args)
         run.outputs = _outputs(args)  # checked and locked before anything is computed
         try:
-            return args.fn(args, run)
+            with one_blas_thread():  # small matrices: OpenBLAS's idle threads only take cores from the work
+                return args.fn(args, run)
         except Exception as exc:
             if type(exc).__name__ == "WorkersLost":  # reachconf.runner.WorkersLost: keep the finished cases
                 return _handle_interrupt(run, exc, lost=True)

@@ -21,7 +21,7 @@ LAYERS = (
                                                                 "reachconf.registry", "reachconf.checks",
                                                                 "reachconf.verdict")),
     ("sets, test suites, process pools, resource checks", ("reachconf.sets", "reachconf.io", "reachconf.runner",
-                                                            "reachconf.budget")),
+                                                            "reachconf.budget", "reachconf.blas_threads")),
     ("model, drawing", ("reachconf.model", "reachconf.plot")),
     ("reachability, built-in models", ("reachconf.reach", "reachconf.reach_options", "reachconf.reach_stream",
                                        "reachconf.reach_adaptive", "reachconf.reach_adaptive_stream",

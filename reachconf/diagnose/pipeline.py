@@ -35,6 +35,7 @@ import time
 import numpy as np
 from tqdm.auto import tqdm
 
+from reachconf.blas_threads import with_one_blas_thread
 from reachconf.conformance.trace import trace_disturbances
 from reachconf.diagnose.consistency import group_sizes, model_spread
 from reachconf.diagnose.effects import EFFECTS, Effect
@@ -123,6 +124,7 @@ def _fit_names(model, fit_params):
     return names
 
 
+@with_one_blas_thread
 def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True, seed: int = 0, V=None,
              options: DiagnoseOptions | None = None, progress: bool = True, reach: bool = False,
              reference=None) -> GapReport:  # fmt: skip
