@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from reachconf_kernels.small_linalg import abs_mat_vec, mat_mat, mat_vec
+from reachconf_kernels.small_linalg import abs_terms_times, mat_mat, mat_vec
 
 #: Relative inflation applied to computed remainder bounds (rounding allowance).
 ROUND = 1e-12
@@ -189,7 +189,7 @@ def interval_matrix_times_zonotope(M_c, M_r, c, G):
 def interval_matrix_times_vector(M_c, M_r, v):
     """Box ``(centre, radius)`` enclosing ``[M_c - M_r, M_c + M_r] v``."""
     cc = mat_vec(M_c, v)
-    rad = abs_mat_vec(M_r, np.abs(v))
+    rad = mat_vec(M_r, np.abs(v))
     n = cc.shape[0]
     for i in range(n):
         s = 0.0
@@ -211,9 +211,7 @@ def particular_constant(T, E, dt, u):
     for i in range(T.shape[0]):
         c += mat_vec(T[i], u)
     rad = mat_vec(E * dt, absu)
-    s = np.zeros(n)
-    for i in range(T.shape[0]):
-        s += abs_mat_vec(T[i], absu)
+    s = abs_terms_times(T, absu)
     rad = rad * (1.0 + ROUND) + s * 4e-16 * (T.shape[0] * n + 1)
     return c, rad
 
@@ -249,9 +247,7 @@ def particular_varying(T, E, dt, c, G, keep_terms=-1):
         for i in range(n):
             absz[i] += abs(G[i, j])
     rad = mat_vec(E * dt, absz)
-    s = np.zeros(n)
-    for i in range(terms):
-        s += abs_mat_vec(T[i], absz)
+    s = abs_terms_times(T, absz)
     # the boxed sums carry the summation's rounding (m + n terms) on top of the products' (the s term)
     rad = rad * (1.0 + ROUND) + boxed * (1.0 + 4e-16 * (m + n + 2)) + s * 4e-16 * (n + 2)
     return cc, GG, rad

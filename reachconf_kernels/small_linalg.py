@@ -43,15 +43,18 @@ def mat_vec(A, x):
 
 
 @njit(cache=True)
-def abs_mat_vec(A, x):
-    """``|A| @ x`` for ``A`` (n, k) and ``x`` (k,) (``x`` is usually non-negative)."""
-    n, k = A.shape
+def abs_terms_times(T, x):
+    """``sum_i |T[i]| @ x`` for ``T`` (terms, n, k) and ``x`` (k,), summed term by term in order."""
+    terms, n, k = T.shape
     out = np.empty(n)
-    for i in range(n):
-        s = 0.0
-        for r in range(k):
-            s += abs(A[i, r]) * x[r]
-        out[i] = s
+    for a in range(n):
+        total = 0.0
+        for i in range(terms):
+            s = 0.0
+            for r in range(k):
+                s += abs(T[i, a, r]) * x[r]
+            total += s
+        out[a] = total
     return out
 
 

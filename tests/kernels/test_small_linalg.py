@@ -7,8 +7,8 @@ from scipy.linalg import expm
 
 from reachconf_kernels.linsys import exp_remainder, linear_step_matrices
 from reachconf_kernels.small_linalg import (
-    abs_mat_vec,
     abs_row_sums_of_product,
+    abs_terms_times,
     mat_mat,
     mat_vec,
 )
@@ -30,9 +30,8 @@ def test_products_agree_with_numpy(seed):
         rtol=1e-13,
         atol=1e-13 * (np.abs(A) @ np.abs(x)).max(initial=0),
     )
-    np.testing.assert_allclose(
-        abs_mat_vec(A, np.abs(x)), np.abs(A) @ np.abs(x), rtol=1e-13
-    )
+    T = rng.normal(size=(3, n, k))
+    np.testing.assert_allclose(abs_terms_times(T, np.abs(x)), sum(np.abs(Ti) @ np.abs(x) for Ti in T), rtol=1e-13)
     np.testing.assert_allclose(abs_row_sums_of_product(A, B), np.abs(A @ B).sum(axis=1), rtol=1e-12,
                                atol=1e-14 * scale * max(m, 1))  # fmt: skip
     # non-contiguous operands (column slices of a Jacobian, transposes) give the same products
