@@ -265,7 +265,14 @@ def _robust_cov(J, r, n_data, blocks_by):
     """Sandwich covariances ``B^-1 M B^-1`` (``B = J^T J`` incl. prior rows, ``M`` from cluster scores).
 
     ``blocks_by``: clustering name -> array of cluster ids per data residual (contiguous clusters).
+    A fit that ended where the residuals are huge (a candidate whose simulation diverges) overflows here:
+    its covariances are then inf/NaN, without numpy's warnings.
     """
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        return _robust_cov_unguarded(J, r, n_data, blocks_by)
+
+
+def _robust_cov_unguarded(J, r, n_data, blocks_by):
     B = J.T @ J
     Binv = np.linalg.pinv(B)
     Jd = J[:n_data] * r[:n_data, None]
@@ -357,8 +364,11 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
                 x0[i] = [x0[i], *tries][int(np.argmin(costs))]
     span = hi - lo
     try:
-        sol = least_squares(fun, x0, bounds=(lo, hi), x_scale=np.where(np.isfinite(span), span / 10, 1.0),
-                            xtol=1e-5, ftol=1e-6, max_nfev=max_nfev)  # fmt: skip
+        # a candidate whose simulation diverges at some trial point gives huge residuals there: the solver's
+        # products overflow and it steps back; numpy's warnings about that are not the user's business
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            sol = least_squares(fun, x0, bounds=(lo, hi), x_scale=np.where(np.isfinite(span), span / 10, 1.0),
+                                xtol=1e-5, ftol=1e-6, max_nfev=max_nfev)  # fmt: skip
     except (ValueError, FloatingPointError, ZeroDivisionError) as exc:  # pragma: no cover - numerical failure
         m, eff = unpack(x0)
         return FitResult(cand, m, dict(zip(fit_names, x0[:nb])), eff, {}, np.inf, False, str(exc), x0, tuple(labels))
