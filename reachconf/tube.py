@@ -139,11 +139,10 @@ class ReachTube:
     def from_pieces(cls, run, model) -> "ReachTube":
         """The tube of an adaptive run (:class:`reachconf.reach_adaptive.AdaptiveRun`): branches with own steps.
 
-        The layout is :func:`reachconf.tube_pieces.piece_layout`; sets are built
-        when first used, the bounds directly from the arrays.
+        The layout is :func:`reachconf.tube_pieces.piece_layout`; sets (and the lists of their pieces)
+        are built when first used, the bounds directly from the arrays.
         """
         from reachconf_kernels.adaptive import piece_hulls
-        from reachconf_kernels.tube_layout import csr_hulls
 
         lay = piece_layout(run.samples, run.scalar, run.rec[:, 0], run.branches)
         P = run.rec.shape[0]
@@ -160,14 +159,14 @@ class ReachTube:
             return piece(int(ids[0])) if ids.size == 1 else SetUnion([piece(int(p)) for p in ids])
 
         # (no copies of the index arrays: entry 0 of tp is X0, an empty group; ti ids are offset by P in make)
-        tp = PieceSets(np.concatenate([[0], lay.tp_indptr]), lay.tp_indices,
+        tp = PieceSets(np.concatenate([[0], lay.tp_indptr]), lay.tp_fill,
                        lambda ids: run.X0 if ids.size == 0 else make(ids))  # fmt: skip
-        ti = PieceSets(lay.ti_indptr, lay.ti_indices, lambda ids: make(np.asarray(ids, dtype=np.int64) + P))
+        ti = PieceSets(lay.ti_indptr, lay.ti_fill, lambda ids: make(np.asarray(ids, dtype=np.int64) + P))
         meta = {"model": model.name, "options": {k: _plain(v) for k, v in run.options.__dict__.items()}}
         tube = cls(lay.times, tp, lay.intervals, ti, model.state_names, model=model, splits=run.splits,
                    seconds=run.seconds, meta=meta, log=run.log)  # fmt: skip
         lo, hi = piece_hulls(run.ti_c, np.ascontiguousarray(run.ti_G), run.ng_ti)
-        tube.step_bounds = np.stack(csr_hulls(lay.ti_indptr, lay.ti_indices, lo, hi), axis=1)
+        tube.step_bounds = np.stack(lay.interval_hulls(lo, hi), axis=1)
         return tube
 
     def summary(self) -> str:

@@ -16,7 +16,6 @@ from the arrays directly.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -26,19 +25,31 @@ from reachconf_kernels import tube_layout as tl
 __all__ = ["PieceSets", "PieceLayout", "piece_layout"]
 
 
+def _as_ids(indices):
+    ids = np.asarray(indices)
+    return ids if ids.dtype.kind == "i" else ids.astype(np.int64)
+
+
 class PieceSets(Sequence):
     """Read-only list of sets built on first access from groups of stored pieces.
 
-    ``make(ids)`` returns the set of the pieces ``ids`` (one Zonotope or a union).
+    ``make(ids)`` returns the set of the pieces ``ids`` (one Zonotope or a union); ``indices`` is the
+    CSR's column array or a function that returns it (called once, when a set is first asked for).
     """
 
     def __init__(self, indptr, indices, make):
         self._indptr = np.asarray(indptr, dtype=np.int64)
-        self._indices = np.asarray(indices)
-        if self._indices.dtype.kind != "i":
-            self._indices = self._indices.astype(np.int64)
+        self._pending = indices if callable(indices) else None  # built on first use (PieceLayout's)
+        self._ids = None if callable(indices) else _as_ids(indices)
         self._make = make
         self._cache = {}
+
+    @property
+    def _indices(self):
+        if self._ids is None:
+            self._ids = _as_ids(self._pending())
+            self._pending = None
+        return self._ids
 
     def __len__(self):
         return self._indptr.size - 1
@@ -75,21 +86,54 @@ class PieceSets(Sequence):
         return self._indptr, self._indices
 
 
-@dataclass
 class PieceLayout:
     """Which stored pieces make up each set of the tube.
 
     ``ti_*``: CSR over the time intervals (piece ids of time-interval sets);
     ``tp_*``: CSR over the sample times 1.. (ids ``p`` of time-point pieces,
-    ``P + p`` for a time-interval piece standing in at that time).
+    ``P + p`` for a time-interval piece standing in at that time).  The row
+    pointers are built at once; the column arrays (one entry per live branch
+    and row: 10^7-10^8 after many splits) on first use
+    (:attr:`ti_indices`, :attr:`tp_indices`, or the functions
+    :attr:`ti_fill`, :attr:`tp_fill` for :class:`PieceSets`).
+    :meth:`interval_hulls` needs neither.
     """
 
-    times: np.ndarray
-    intervals: np.ndarray
-    ti_indptr: np.ndarray
-    ti_indices: np.ndarray
-    tp_indptr: np.ndarray
-    tp_indices: np.ndarray
+    def __init__(self, times, intervals, ti_indptr, tp_indptr, ti_fill, tp_fill, hulls):
+        self.times = times
+        self.intervals = intervals
+        self.ti_indptr = ti_indptr
+        self.tp_indptr = tp_indptr
+        self._fill = {"ti": ti_fill, "tp": tp_fill}
+        self._built = {}
+        self._hulls = hulls
+
+    def _indices(self, which):
+        if which not in self._built:
+            self._built[which] = self._fill[which]()
+        return self._built[which]
+
+    def ti_fill(self):
+        """The time intervals' column array (built once)."""
+        return self._indices("ti")
+
+    def tp_fill(self):
+        """The time points' column array (built once)."""
+        return self._indices("tp")
+
+    @property
+    def ti_indices(self):
+        """The time intervals' column array (built on first use)."""
+        return self.ti_fill()
+
+    @property
+    def tp_indices(self):
+        """The time points' column array (built on first use)."""
+        return self.tp_fill()
+
+    def interval_hulls(self, lo, hi):
+        """``(lo, hi)`` (intervals, n): per time interval the hull of its pieces' hulls ``lo, hi`` (P, n)."""
+        return self._hulls(lo, hi)
 
 
 def _index_dtype(P):
@@ -142,15 +186,26 @@ def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
     # time intervals: a branch covers the mids strictly inside (t_begin, t_end)
     row_lo, row_hi = np.searchsorted(mids, t_begin, side="right"), np.searchsorted(mids, t_end, side="left")
     ti_indptr = tl.range_indptr(mids.size, row_lo, row_hi)
-    ti_indices = np.empty(int(ti_indptr[-1]), dtype=_index_dtype(P))
-    tl.fill_interval_pieces(ti_indptr, ti_indices, mids, row_lo, row_hi, rec_lo, rec_hi, t0)
+    ti_rows = (row_lo, row_hi)
+
+    def ti_fill():
+        indices = np.empty(int(ti_indptr[-1]), dtype=_index_dtype(P))
+        tl.fill_interval_pieces(ti_indptr, indices, mids, *ti_rows, rec_lo, rec_hi, t0)
+        return indices
+
+    def hulls(lo, hi):
+        return tl.interval_hulls(mids.size, mids, *ti_rows, rec_lo, rec_hi, t0, lo, hi)
+
     if scalar:  # a time-point set at every step end of any branch: the times in (t_begin, t_end] (rows from 1)
         times = grid
-        row_lo = np.searchsorted(times, t_begin + tol, side="right") - 1
-        row_hi = np.searchsorted(times, t_end + tol, side="right") - 1
-        tp_indptr = tl.range_indptr(times.size - 1, row_lo, row_hi)
-        tp_indices = np.empty(int(tp_indptr[-1]), dtype=_index_dtype(P))
-        tl.fill_point_pieces(tp_indptr, tp_indices, times, row_lo, row_hi, rec_lo, rec_hi, t_end, t0, tol, P)
+        tp_lo = np.searchsorted(times, t_begin + tol, side="right") - 1
+        tp_hi = np.searchsorted(times, t_end + tol, side="right") - 1
+        tp_indptr = tl.range_indptr(times.size - 1, tp_lo, tp_hi)
+
+        def tp_fill():
+            indices = np.empty(int(tp_indptr[-1]), dtype=_index_dtype(P))
+            tl.fill_point_pieces(tp_indptr, indices, times, tp_lo, tp_hi, rec_lo, rec_hi, t_end, t0, tol, P)
+            return indices
     else:  # at the sample times each branch reached (few: one per sample and live branch)
         times = samples
         parts = []
@@ -159,6 +214,9 @@ def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
             js = js[js >= 1]
             parts.append((js - 1, b.sample_step[js]))
         tp_indptr, tp_indices = _csr(parts, times.size - 1, P)
+
+        def tp_fill():
+            return tp_indices
     if np.any(np.diff(ti_indptr) == 0) or np.any(np.diff(tp_indptr) == 0):
         raise ReachError("internal error: a time of the adaptive tube has no reachable set")
-    return PieceLayout(times, np.column_stack([grid[:-1], grid[1:]]), ti_indptr, ti_indices, tp_indptr, tp_indices)
+    return PieceLayout(times, np.column_stack([grid[:-1], grid[1:]]), ti_indptr, tp_indptr, ti_fill, tp_fill, hulls)

@@ -6,9 +6,11 @@ interval is the union of, per live branch, the piece (step) covering it.  With
 hundreds of live branches over 10^5 intervals there are 10^7-10^8 (interval,
 piece) pairs (Van der Pol mu = 2: 77 million), so they are counted and
 filled here in place, branch after branch, walking each branch's steps along
-the sorted times (no sort, no per-pair temporaries).  Within a row the
-pieces keep the order of the branches given (the caller sorts them by their
-first piece, so ids increase).
+the sorted times (no sort, no per-pair temporaries) — and only when a set is
+asked for: the interval hulls per time interval, which every tube carries,
+come from the same walk without storing the pairs (:func:`interval_hulls`).
+Within a row the pieces keep the order of the branches given (the caller
+sorts them by their first piece, so ids increase).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["range_indptr", "fill_interval_pieces", "fill_point_pieces", "csr_hulls"]
+__all__ = ["range_indptr", "fill_interval_pieces", "fill_point_pieces", "csr_hulls", "interval_hulls"]
 
 
 @njit(cache=True)
@@ -83,6 +85,29 @@ def csr_hulls(indptr, indices, lo, hi):
     for j in range(count):
         for q in range(indptr[j], indptr[j + 1]):
             p = indices[q]
+            for i in range(n):
+                if lo[p, i] < out_lo[j, i]:
+                    out_lo[j, i] = lo[p, i]
+                if hi[p, i] > out_hi[j, i]:
+                    out_hi[j, i] = hi[p, i]
+    return out_lo, out_hi
+
+
+@njit(cache=True)
+def interval_hulls(count, mids, row_lo, row_hi, rec_lo, rec_hi, t0, lo, hi):
+    """Interval hull per row of the pieces covering it, by the walk of :func:`fill_interval_pieces`.
+
+    The same as :func:`csr_hulls` on the CSR that :func:`fill_interval_pieces` fills (``count`` rows;
+    per piece the hull ``lo, hi`` (P, n)), without storing the (row, piece) pairs.
+    """
+    n = lo.shape[1]
+    out_lo = np.full((count, n), np.inf)
+    out_hi = np.full((count, n), -np.inf)
+    for b in range(row_lo.size):
+        p = rec_lo[b]
+        for j in range(row_lo[b], row_hi[b]):
+            while p + 1 < rec_hi[b] and t0[p + 1] <= mids[j]:
+                p += 1
             for i in range(n):
                 if lo[p, i] < out_lo[j, i]:
                     out_lo[j, i] = lo[p, i]

@@ -211,3 +211,7 @@ def test_piece_layout_matches_a_brute_force_enumeration_of_the_branches_steps():
         ids = lay.ti_indices[lay.ti_indptr[j] : lay.ti_indptr[j + 1]]
         np.testing.assert_array_equal(blo[j], lo[ids].min(axis=0))
         np.testing.assert_array_equal(bhi[j], hi[ids].max(axis=0))
+    # the tube's bounds come from the same walk without the CSR's column array
+    wlo, whi = piece_layout(np.array([0.0, T]), True, t0, branches).interval_hulls(lo, hi)
+    np.testing.assert_array_equal(wlo, blo)
+    np.testing.assert_array_equal(whi, bhi)
