@@ -75,6 +75,16 @@ def fill_point_pieces(indptr, indices, times, row_lo, row_hi, rec_lo, rec_hi, t_
             fill[j] += 1
 
 
+@njit(cache=True, inline="always")  # called once per (row, piece) pair: 10^8 times
+def _widen(out_lo, out_hi, j, lo, hi, p):
+    """Row ``j`` of the hull ``out_lo, out_hi`` widened by piece ``p``'s hull."""
+    for i in range(lo.shape[1]):
+        if lo[p, i] < out_lo[j, i]:
+            out_lo[j, i] = lo[p, i]
+        if hi[p, i] > out_hi[j, i]:
+            out_hi[j, i] = hi[p, i]
+
+
 @njit(cache=True)
 def csr_hulls(indptr, indices, lo, hi):
     """Interval hull per row of the pieces it lists, from every piece's hull ``lo, hi`` (P, n)."""
@@ -84,12 +94,7 @@ def csr_hulls(indptr, indices, lo, hi):
     out_hi = np.full((count, n), -np.inf)
     for j in range(count):
         for q in range(indptr[j], indptr[j + 1]):
-            p = indices[q]
-            for i in range(n):
-                if lo[p, i] < out_lo[j, i]:
-                    out_lo[j, i] = lo[p, i]
-                if hi[p, i] > out_hi[j, i]:
-                    out_hi[j, i] = hi[p, i]
+            _widen(out_lo, out_hi, j, lo, hi, indices[q])
     return out_lo, out_hi
 
 
@@ -108,9 +113,5 @@ def interval_hulls(count, mids, row_lo, row_hi, rec_lo, rec_hi, t0, lo, hi):
         for j in range(row_lo[b], row_hi[b]):
             while p + 1 < rec_hi[b] and t0[p + 1] <= mids[j]:
                 p += 1
-            for i in range(n):
-                if lo[p, i] < out_lo[j, i]:
-                    out_lo[j, i] = lo[p, i]
-                if hi[p, i] > out_hi[j, i]:
-                    out_hi[j, i] = hi[p, i]
+            _widen(out_lo, out_hi, j, lo, hi, p)
     return out_lo, out_hi
