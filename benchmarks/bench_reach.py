@@ -235,6 +235,35 @@ def bench_adaptive(repeat):
     return rows
 
 
+def lin_search_grid():
+    """The hand-tuning tried for the instances without a tuned setting: 60 ``"lin"`` settings (tensor order 3)."""
+    grid = [dict(time_step=dt, max_error=me, max_splits=ms, zonotope_order=20, error_order=10, split_method="generator")
+            for dt in (0.01, 0.005, 0.0025) for me in (0.03, 0.01) for ms in (64, 256)]
+    grid += [dict(time_step=dt, max_error=me, max_splits=256, zonotope_order=zo, error_order=eo, split_method=sm)
+             for dt in (0.005, 0.002) for me in (0.003, 0.001, 0.0003) for zo in (20, 50) for eo in (10, 20)
+             for sm in ("generator", "box")]
+    return [rc.ReachOptions(algorithm="lin", tensor_order=3, taylor_terms=4, **g) for g in grid]
+
+
+def search_lin():
+    """Try :func:`lin_search_grid` on every default-vs-tuned instance that has no hand-tuned setting."""
+    for name, model, X0, times, U, W, check, tuned in adaptive_instances():
+        if tuned is not None:
+            continue
+        found = 0
+        for opts in lin_search_grid():
+            c0 = time.process_time()
+            try:
+                ok, detail = check(rc.reach(model, X0, times, inputs=U, W=W, options=opts))
+            except rc.ReachError as exc:
+                ok, detail = False, f"ReachError: {str(exc)[:110]}"
+            found += ok
+            print(f"{name}: dt {opts.time_step}, max_error {opts.max_error}, max_splits {opts.max_splits}, "
+                  f"orders {opts.zonotope_order}/{opts.error_order}, {opts.split_method}: "
+                  f"{'VERIFIED' if ok else 'no'} ({detail}; {time.process_time() - c0:.1f} s CPU)", flush=True)
+        print(f"{name}: {found} of {len(lin_search_grid())} settings verified\n", flush=True)
+
+
 def heldout_instances():
     """``(name, model, X0, horizon, state index)``: instances not used to choose the adaptive algorithm's rules."""
     from reachconf.models import coupled_vanderpol
@@ -272,7 +301,12 @@ def main(argv=None):
                         help="only the default-vs-tuned table (algorithm='adaptive' against the hand-tuned settings)")
     parser.add_argument("--adaptive-heldout", action="store_true",
                         help="only algorithm='adaptive' on instances not used to choose its rules")
+    parser.add_argument("--search-lin", action="store_true",
+                        help="try 60 hand-tuned 'lin' settings on the instances without one (about 15 min)")
     args = parser.parse_args(argv)
+    if args.search_lin:
+        search_lin()
+        return
     if args.adaptive_heldout:
         bench_adaptive_heldout(args.repeat)
         return
