@@ -42,10 +42,10 @@ def plot_tube(tube, dims=None, ax=None, color="C0", alpha=0.35, outline=True, la
         raise SetError(f"plot needs two dimensions, got {dims!r}")
     if ax is None:
         _, ax = plt.subplots(figsize=(8, 5))
-    polys = [p.project(idx).polygon() for p in _pieces(tube.time_interval_sets)]
+    polys = _polygons(tube.time_interval_sets, idx)
     ax.add_collection(PolyCollection(polys, facecolors=color, edgecolors="none", alpha=alpha, label=label))
     if outline:
-        outs = [p.project(idx).polygon() for p in _pieces(tube.time_point_sets)]
+        outs = _polygons(tube.time_point_sets, idx)
         ax.add_collection(PolyCollection(outs, facecolors="none", edgecolors=color, linewidths=0.4))
     allpts = np.vstack(polys)
     lo, hi = allpts.min(axis=0), allpts.max(axis=0)
@@ -60,12 +60,13 @@ def plot_tube(tube, dims=None, ax=None, color="C0", alpha=0.35, outline=True, la
     return ax
 
 
-def _pieces(sets):
-    """The pieces of a list of sets; each stored piece once where the list shares them (an adaptive tube's)."""
-    distinct = getattr(sets, "distinct_pieces", None)
+def _polygons(sets, idx):
+    """Polygons of the pieces of a list of sets on ``idx``; each stored piece once where the list shares them
+    (an adaptive tube's, drawn from its stored arrays)."""
+    distinct = getattr(sets, "distinct_polygons", None)
     if distinct is not None:
-        return distinct()
-    return [p for s in sets for p in s.pieces]
+        return distinct(idx)
+    return [p.project(idx).polygon() for s in sets for p in s.pieces]
 
 
 def plot_measured(ax, measured, dims, label="measured", **style):

@@ -143,6 +143,7 @@ class ReachTube:
         are built when first used, the bounds directly from the arrays.
         """
         from reachconf_kernels.adaptive import piece_hulls
+        from reachconf_kernels.tube_layout import piece_polygons
 
         lay = piece_layout(run.samples, run.scalar, run.rec[:, 0], run.branches)
         P = run.rec.shape[0]
@@ -158,10 +159,22 @@ class ReachTube:
         def make(ids):
             return piece(int(ids[0])) if ids.size == 1 else SetUnion([piece(int(p)) for p in ids])
 
+        def polygons(c, G, off, ids, dims):
+            V, starts = piece_polygons(c, G, off, np.ascontiguousarray(ids, dtype=np.int64), int(dims[0]), int(dims[1]))
+            return np.split(V, starts[1:-1]) if ids.size else []
+
+        def tp_polygons(dims):  # X0 first, then the distinct pieces in id order, as distinct_pieces()
+            ids = lay.tp_distinct()
+            own, standing = ids[ids < P], ids[ids >= P] - P
+            return ([p.project(dims).polygon() for p in run.X0.pieces]
+                    + polygons(run.tp_c, run.tp_G, off_tp, own, dims)
+                    + polygons(run.ti_c, run.ti_G, off_ti, standing, dims))  # fmt: skip
+
         # (no copies of the index arrays: entry 0 of tp is X0, an empty group; ti ids are offset by P in make)
         tp = PieceSets(np.concatenate([[0], lay.tp_indptr]), lay.tp_fill,
-                       lambda ids: run.X0 if ids.size == 0 else make(ids))  # fmt: skip
-        ti = PieceSets(lay.ti_indptr, lay.ti_fill, lambda ids: make(np.asarray(ids, dtype=np.int64) + P))
+                       lambda ids: run.X0 if ids.size == 0 else make(ids), tp_polygons)  # fmt: skip
+        ti = PieceSets(lay.ti_indptr, lay.ti_fill, lambda ids: make(np.asarray(ids, dtype=np.int64) + P),
+                       lambda dims: polygons(run.ti_c, run.ti_G, off_ti, lay.ti_distinct(), dims))  # fmt: skip
         meta = {"model": model.name, "options": {k: _plain(v) for k, v in run.options.__dict__.items()}}
         tube = cls(lay.times, tp, lay.intervals, ti, model.state_names, model=model, splits=run.splits,
                    seconds=run.seconds, meta=meta, log=run.log)  # fmt: skip

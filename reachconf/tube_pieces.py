@@ -34,11 +34,13 @@ class PieceSets(Sequence):
     """Read-only list of sets built on first access from groups of stored pieces.
 
     ``make(ids)`` returns the set of the pieces ``ids`` (one Zonotope or a union); ``indices`` is the
-    CSR's column array or a function that returns it (called once, when a set is first asked for).
+    CSR's column array or a function that returns it (called once, when a set is first asked for);
+    ``polygons(dims)``, optional, draws :meth:`distinct_polygons` from the stored arrays.
     """
 
-    def __init__(self, indptr, indices, make):
+    def __init__(self, indptr, indices, make, polygons=None):
         self._indptr = np.asarray(indptr, dtype=np.int64)
+        self._polygons = polygons  # dims -> polygons of distinct_pieces(), computed from the stored arrays
         self._pending = indices if callable(indices) else None  # built on first use (PieceLayout's)
         self._ids = None if callable(indices) else _as_ids(indices)
         self._make = make
@@ -77,6 +79,12 @@ class PieceSets(Sequence):
             out.extend(self._make(np.array([i], dtype=np.int64)).pieces)
         return out
 
+    def distinct_polygons(self, dims) -> list:
+        """The 2-D polygons (vertices (V, 2)) of :meth:`distinct_pieces` projected on ``dims``, in that order."""
+        if self._polygons is not None:
+            return self._polygons(dims)
+        return [p.project(dims).polygon() for p in self.distinct_pieces()]
+
     def __reduce__(self):
         # pickled (to or from a worker process) as the plain list of its sets: ``make`` is a closure
         return (list, (list(self),))
@@ -99,7 +107,7 @@ class PieceLayout:
     :meth:`interval_hulls` needs neither.
     """
 
-    def __init__(self, times, intervals, ti_indptr, tp_indptr, ti_fill, tp_fill, hulls):
+    def __init__(self, times, intervals, ti_indptr, tp_indptr, ti_fill, tp_fill, hulls, ti_distinct, tp_distinct):
         self.times = times
         self.intervals = intervals
         self.ti_indptr = ti_indptr
@@ -107,6 +115,9 @@ class PieceLayout:
         self._fill = {"ti": ti_fill, "tp": tp_fill}
         self._built = {}
         self._hulls = hulls
+        #: sorted ids of the pieces the time intervals (time points) list, without the lists
+        self.ti_distinct = ti_distinct
+        self.tp_distinct = tp_distinct
 
     def _indices(self, which):
         if which not in self._built:
@@ -134,6 +145,9 @@ class PieceLayout:
     def interval_hulls(self, lo, hi):
         """``(lo, hi)`` (intervals, n): per time interval the hull of its pieces' hulls ``lo, hi`` (P, n)."""
         return self._hulls(lo, hi)
+
+
+_NO_MARK = np.zeros(0, dtype=np.bool_)
 
 
 def _index_dtype(P):
@@ -188,10 +202,15 @@ def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
     ti_indptr = tl.range_indptr(mids.size, row_lo, row_hi)
     ti_rows = (row_lo, row_hi)
 
-    def ti_fill():
-        indices = np.empty(int(ti_indptr[-1]), dtype=_index_dtype(P))
-        tl.fill_interval_pieces(ti_indptr, indices, mids, *ti_rows, rec_lo, rec_hi, t0)
+    def ti_fill(used=_NO_MARK):
+        indices = np.empty(0 if used.size else int(ti_indptr[-1]), dtype=_index_dtype(P))
+        tl.fill_interval_pieces(ti_indptr, indices, mids, *ti_rows, rec_lo, rec_hi, t0, used)
         return indices
+
+    def ti_distinct():
+        used = np.zeros(P, dtype=np.bool_)
+        ti_fill(used)
+        return np.flatnonzero(used)
 
     def hulls(lo, hi):
         return tl.interval_hulls(mids.size, mids, *ti_rows, rec_lo, rec_hi, t0, lo, hi)
@@ -202,10 +221,15 @@ def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
         tp_hi = np.searchsorted(times, t_end + tol, side="right") - 1
         tp_indptr = tl.range_indptr(times.size - 1, tp_lo, tp_hi)
 
-        def tp_fill():
-            indices = np.empty(int(tp_indptr[-1]), dtype=_index_dtype(P))
-            tl.fill_point_pieces(tp_indptr, indices, times, tp_lo, tp_hi, rec_lo, rec_hi, t_end, t0, tol, P)
+        def tp_fill(used=_NO_MARK):
+            indices = np.empty(0 if used.size else int(tp_indptr[-1]), dtype=_index_dtype(P))
+            tl.fill_point_pieces(tp_indptr, indices, times, tp_lo, tp_hi, rec_lo, rec_hi, t_end, t0, tol, P, used)
             return indices
+
+        def tp_distinct():
+            used = np.zeros(2 * P, dtype=np.bool_)
+            tp_fill(used)
+            return np.flatnonzero(used)
     else:  # at the sample times each branch reached (few: one per sample and live branch)
         times = samples
         parts = []
@@ -217,6 +241,10 @@ def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
 
         def tp_fill():
             return tp_indices
+
+        def tp_distinct():
+            return np.unique(tp_indices)
     if np.any(np.diff(ti_indptr) == 0) or np.any(np.diff(tp_indptr) == 0):
         raise ReachError("internal error: a time of the adaptive tube has no reachable set")
-    return PieceLayout(times, np.column_stack([grid[:-1], grid[1:]]), ti_indptr, tp_indptr, ti_fill, tp_fill, hulls)
+    return PieceLayout(times, np.column_stack([grid[:-1], grid[1:]]), ti_indptr, tp_indptr, ti_fill, tp_fill, hulls,
+                       ti_distinct, tp_distinct)  # fmt: skip

@@ -18,7 +18,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["range_indptr", "fill_interval_pieces", "fill_point_pieces", "csr_hulls", "interval_hulls"]
+from reachconf_kernels.zonotope import compact, polygon
+
+__all__ = ["range_indptr", "fill_interval_pieces", "fill_point_pieces", "csr_hulls", "interval_hulls",
+           "piece_polygons"]
 
 
 @njit(cache=True)
@@ -38,29 +41,35 @@ def range_indptr(count, row_lo, row_hi):
 
 
 @njit(cache=True)
-def fill_interval_pieces(indptr, indices, mids, row_lo, row_hi, rec_lo, rec_hi, t0):
+def fill_interval_pieces(indptr, indices, mids, row_lo, row_hi, rec_lo, rec_hi, t0, used):
     """Fill ``indices``: for each row ``j`` of branch ``b``, its step covering ``mids[j]``.
 
     That is the last of the branch's pieces (ids from ``rec_lo[b]`` up to ``rec_hi[b]``, excl.; start times
-    ``t0``) starting at or before it.
+    ``t0``) starting at or before it.  ``used`` (bool, ids), unless empty, marks every id listed; with
+    ``indices`` empty only that is done.
     """
+    store, mark = indices.size > 0, used.size > 0
     fill = indptr[:-1].copy()
     for b in range(row_lo.size):
         p = rec_lo[b]
         for j in range(row_lo[b], row_hi[b]):
             while p + 1 < rec_hi[b] and t0[p + 1] <= mids[j]:
                 p += 1
-            indices[fill[j]] = p
-            fill[j] += 1
+            if store:
+                indices[fill[j]] = p
+                fill[j] += 1
+            if mark:
+                used[p] = True
 
 
 @njit(cache=True)
-def fill_point_pieces(indptr, indices, times, row_lo, row_hi, rec_lo, rec_hi, t_end, t0, tol, P):
+def fill_point_pieces(indptr, indices, times, row_lo, row_hi, rec_lo, rec_hi, t_end, t0, tol, P, used):
     """Fill ``indices``: for row ``j`` (the time ``times[j + 1]``) of branch ``b``, the step ending then.
 
     Its id, or, when no step of the branch ends then, the step covering the time (id ``P + step``: its
-    time-interval set stands in).
+    time-interval set stands in).  ``used`` as in :func:`fill_interval_pieces` (``2 P`` ids).
     """
+    store, mark = indices.size > 0, used.size > 0
     fill = indptr[:-1].copy()
     for b in range(row_lo.size):
         lo = rec_lo[b]
@@ -71,8 +80,12 @@ def fill_point_pieces(indptr, indices, times, row_lo, row_hi, rec_lo, rec_hi, t_
             while k < n - 1 and t0[lo + k + 1] < T - tol:  # end of step k: t0 of the next, t_end for the last
                 k += 1
             e = t0[lo + k + 1] if k < n - 1 else t_end[b]
-            indices[fill[j]] = lo + k if abs(e - T) <= tol else P + lo + k
-            fill[j] += 1
+            q = lo + k if abs(e - T) <= tol else P + lo + k
+            if store:
+                indices[fill[j]] = q
+                fill[j] += 1
+            if mark:
+                used[q] = True
 
 
 @njit(cache=True, inline="always")  # called once per (row, piece) pair: 10^8 times
@@ -115,3 +128,38 @@ def interval_hulls(count, mids, row_lo, row_hi, rec_lo, rec_hi, t0, lo, hi):
                 p += 1
             _widen(out_lo, out_hi, j, lo, hi, p)
     return out_lo, out_hi
+
+
+@njit(cache=True)
+def piece_polygons(c, G, off, ids, i0, i1):
+    """Vertices of the 2-D projections (dimensions ``i0, i1``) of the stored sets ``ids``, for drawing.
+
+    Set ``p``: centre ``c[p]``, generators the columns ``off[p]`` to ``off[p + 1]`` (excl.) of ``G``.  Each is
+    compacted (:func:`~reachconf_kernels.zonotope.compact`, tol 0) and turned into its polygon
+    (:func:`~reachconf_kernels.zonotope.polygon`; a point without generators), as ``Zonotope.polygon`` does.
+    Returns ``(V, starts)``: the vertices of set ``ids[k]`` are ``V[starts[k]:starts[k + 1]]``.
+    """
+    cap = 0
+    for k in range(ids.size):
+        cap += 2 * (off[ids[k] + 1] - off[ids[k]]) + 4
+    V = np.empty((cap, 2))
+    starts = np.zeros(ids.size + 1, dtype=np.int64)
+    pos = 0
+    for k in range(ids.size):
+        p = ids[k]
+        m = off[p + 1] - off[p]
+        cz = np.array([c[p, i0], c[p, i1]])
+        Gz = np.empty((2, m))
+        for j in range(m):
+            Gz[0, j] = G[i0, off[p] + j]
+            Gz[1, j] = G[i1, off[p] + j]
+        cc, Gc = compact(cz, Gz, 0.0)
+        if Gc.shape[1] == 0:
+            V[pos] = cc
+            pos += 1
+        else:
+            P = polygon(cc, Gc)
+            V[pos : pos + P.shape[0]] = P
+            pos += P.shape[0]
+        starts[k + 1] = pos
+    return V[:pos], starts

@@ -215,3 +215,19 @@ def test_piece_layout_matches_a_brute_force_enumeration_of_the_branches_steps():
     wlo, whi = piece_layout(np.array([0.0, T]), True, t0, branches).interval_hulls(lo, hi)
     np.testing.assert_array_equal(wlo, blo)
     np.testing.assert_array_equal(whi, bhi)
+
+
+@pytest.mark.parametrize("horizon", ["scalar", "samples"])
+def test_adaptive_tube_polygons_from_the_stored_arrays_match_the_sets(horizon):
+    """The picture's polygons are computed from the run's arrays (one compiled call, no lists of (interval, piece)
+    pairs): the same vertices, in the same order, as projecting every distinct piece (a split run, both the
+    time-interval and the time-point sets, with a scalar horizon and with sample times)."""
+    T = 7.0 if horizon == "scalar" else np.linspace(0.0, 7.0, 15)
+    tube = rc.reach(vanderpol(), VDP_X0, T, options=rc.ReachOptions(algorithm="adaptive"))
+    assert tube.splits > 0
+    for sets in (tube.time_interval_sets, tube.time_point_sets):
+        fast = sets.distinct_polygons([1, 0])
+        slow = [p.project([1, 0]).polygon() for p in sets.distinct_pieces()]
+        assert len(fast) == len(slow) > 10
+        for a, b in zip(fast, slow):
+            np.testing.assert_array_equal(a, b)
