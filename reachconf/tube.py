@@ -172,9 +172,10 @@ class ReachTube:
 
         # (no copies of the index arrays: entry 0 of tp is X0, an empty group; ti ids are offset by P in make)
         tp = PieceSets(np.concatenate([[0], lay.tp_indptr]), lay.tp_fill,
-                       lambda ids: run.X0 if ids.size == 0 else make(ids), tp_polygons)  # fmt: skip
+                       lambda ids: run.X0 if ids.size == 0 else make(ids), tp_polygons,
+                       lambda j: np.zeros(0, dtype=np.int64) if j == 0 else lay.tp_row(j - 1))  # fmt: skip
         ti = PieceSets(lay.ti_indptr, lay.ti_fill, lambda ids: make(np.asarray(ids, dtype=np.int64) + P),
-                       lambda dims: polygons(run.ti_c, run.ti_G, off_ti, lay.ti_distinct(), dims))  # fmt: skip
+                       lambda dims: polygons(run.ti_c, run.ti_G, off_ti, lay.ti_distinct(), dims), lay.ti_row)  # fmt: skip
         meta = {"model": model.name, "options": {k: _plain(v) for k, v in run.options.__dict__.items()}}
         tube = cls(lay.times, tp, lay.intervals, ti, model.state_names, model=model, splits=run.splits,
                    seconds=run.seconds, meta=meta, log=run.log)  # fmt: skip

@@ -35,11 +35,18 @@ class PieceSets(Sequence):
 
     ``make(ids)`` returns the set of the pieces ``ids`` (one Zonotope or a union); ``indices`` is the
     CSR's column array or a function that returns it (called once, when a set is first asked for);
-    ``polygons(dims)``, optional, draws :meth:`distinct_polygons` from the stored arrays.
+    ``polygons(dims)``, optional, draws :meth:`distinct_polygons` from the stored arrays; ``row(j)``,
+    optional, gives the ids of entry ``j`` without the column array (for the first :attr:`ROW_LOOKUPS`
+    entries asked for one by one: a final set, a set at one time).
     """
 
-    def __init__(self, indptr, indices, make, polygons=None):
+    #: entries looked up one by one (``row``) before the whole column array is built instead
+    ROW_LOOKUPS = 256
+
+    def __init__(self, indptr, indices, make, polygons=None, row=None):
         self._indptr = np.asarray(indptr, dtype=np.int64)
+        self._row = row  # j -> piece ids of entry j, without the column array (a few entries asked for)
+        self._lookups = 0
         self._polygons = polygons  # dims -> polygons of distinct_pieces(), computed from the stored arrays
         self._pending = indices if callable(indices) else None  # built on first use (PieceLayout's)
         self._ids = None if callable(indices) else _as_ids(indices)
@@ -66,9 +73,19 @@ class PieceSets(Sequence):
             raise IndexError(j)
         out = self._cache.get(j)
         if out is None:
-            out = self._make(self._indices[self._indptr[j] : self._indptr[j + 1]])
+            if self._ids is None and self._row is not None and self._lookups < self.ROW_LOOKUPS:
+                self._lookups += 1
+                ids = self._row(j)
+            else:
+                ids = self._indices[self._indptr[j] : self._indptr[j + 1]]
+            out = self._make(ids)
             self._cache[j] = out
         return out
+
+    def __iter__(self):
+        self._indices  # every entry: the column array at once
+        for j in range(len(self)):
+            yield self[j]
 
     def distinct_pieces(self) -> list:
         """Every stored piece once (a piece of a branch's long step serves several entries): for drawing."""
@@ -118,6 +135,8 @@ class PieceLayout:
         #: sorted ids of the pieces the time intervals (time points) list, without the lists
         self.ti_distinct = ti_distinct
         self.tp_distinct = tp_distinct
+        #: ``j -> ids`` of one row (set by :func:`piece_layout`)
+        self.ti_row = self.tp_row = None
 
     def _indices(self, which):
         if which not in self._built:
@@ -212,6 +231,11 @@ def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
         ti_fill(used)
         return np.flatnonzero(used)
 
+    def ti_row(j):  # the walk of fill_interval_pieces for row j alone
+        ids = [rec_lo[b] + int(np.searchsorted(t0[rec_lo[b] : rec_hi[b]], mids[j], side="right")) - 1
+               for b in np.flatnonzero((row_lo <= j) & (j < row_hi))]  # fmt: skip
+        return np.array(ids, dtype=np.int64)
+
     def hulls(lo, hi):
         return tl.interval_hulls(mids.size, mids, *ti_rows, rec_lo, rec_hi, t0, lo, hi)
 
@@ -230,6 +254,15 @@ def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
             used = np.zeros(2 * P, dtype=np.bool_)
             tp_fill(used)
             return np.flatnonzero(used)
+
+        def tp_row(j):  # the walk of fill_point_pieces for row j alone
+            T, ids = times[j + 1], []
+            for b in np.flatnonzero((tp_lo <= j) & (j < tp_hi)):
+                lo, n = rec_lo[b], rec_hi[b] - rec_lo[b]
+                k = int(np.searchsorted(t0[lo + 1 : lo + n], T - tol, side="left"))
+                e = t0[lo + k + 1] if k < n - 1 else t_end[b]
+                ids.append(lo + k if abs(e - T) <= tol else P + lo + k)
+            return np.array(ids, dtype=np.int64)
     else:  # at the sample times each branch reached (few: one per sample and live branch)
         times = samples
         parts = []
@@ -244,7 +277,12 @@ def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
 
         def tp_distinct():
             return np.unique(tp_indices)
+
+        def tp_row(j):
+            return tp_indices[tp_indptr[j] : tp_indptr[j + 1]]
     if np.any(np.diff(ti_indptr) == 0) or np.any(np.diff(tp_indptr) == 0):
         raise ReachError("internal error: a time of the adaptive tube has no reachable set")
-    return PieceLayout(times, np.column_stack([grid[:-1], grid[1:]]), ti_indptr, tp_indptr, ti_fill, tp_fill, hulls,
-                       ti_distinct, tp_distinct)  # fmt: skip
+    lay = PieceLayout(times, np.column_stack([grid[:-1], grid[1:]]), ti_indptr, tp_indptr, ti_fill, tp_fill, hulls,
+                      ti_distinct, tp_distinct)  # fmt: skip
+    lay.ti_row, lay.tp_row = ti_row, tp_row
+    return lay

@@ -212,9 +212,15 @@ def test_piece_layout_matches_a_brute_force_enumeration_of_the_branches_steps():
         np.testing.assert_array_equal(blo[j], lo[ids].min(axis=0))
         np.testing.assert_array_equal(bhi[j], hi[ids].max(axis=0))
     # the tube's bounds come from the same walk without the CSR's column array
-    wlo, whi = piece_layout(np.array([0.0, T]), True, t0, branches).interval_hulls(lo, hi)
+    fresh = piece_layout(np.array([0.0, T]), True, t0, branches)
+    wlo, whi = fresh.interval_hulls(lo, hi)
     np.testing.assert_array_equal(wlo, blo)
     np.testing.assert_array_equal(whi, bhi)
+    # and so does every single row (the first entries a user asks for), in the same order
+    for j in range(mids.size):
+        assert fresh.ti_row(j).tolist() == lay.ti_indices[lay.ti_indptr[j] : lay.ti_indptr[j + 1]].tolist()
+    for j in range(lay.times.size - 1):
+        assert fresh.tp_row(j).tolist() == lay.tp_indices[lay.tp_indptr[j] : lay.tp_indptr[j + 1]].tolist()
 
 
 @pytest.mark.parametrize("horizon", ["scalar", "samples"])
@@ -231,3 +237,26 @@ def test_adaptive_tube_polygons_from_the_stored_arrays_match_the_sets(horizon):
         assert len(fast) == len(slow) > 10
         for a, b in zip(fast, slow):
             np.testing.assert_array_equal(a, b)
+
+
+
+@pytest.mark.parametrize("horizon", ["scalar", "samples"])
+def test_adaptive_tube_sets_looked_up_one_by_one_equal_those_of_the_whole_lists(horizon):
+    """A few sets (the final one, one time) are found row by row without building the (interval, piece) lists;
+    after ``PieceSets.ROW_LOOKUPS`` of them, or on iteration, the lists are built: the same pieces either way."""
+    T = 7.0 if horizon == "scalar" else np.linspace(0.0, 7.0, 15)
+    run = lambda: rc.reach(vanderpol(), VDP_X0, T, options=rc.ReachOptions(algorithm="adaptive"))  # noqa: E731
+    a, b = run(), run()
+    assert a.splits > 0
+    for sa, sb in ((a.time_interval_sets, b.time_interval_sets), (a.time_point_sets, b.time_point_sets)):
+        picks = [0, 1, len(sa) // 2, len(sa) - 1]
+        one_by_one = [sa[j] for j in picks]
+        assert sa._ids is None  # not built for these
+        whole = list(sb)  # iteration builds the lists
+        assert sb._ids is not None
+        for j, s1 in zip(picks, one_by_one):
+            p1, p2 = getattr(s1, "pieces", [s1]), getattr(whole[j], "pieces", [whole[j]])
+            assert len(p1) == len(p2)
+            for z1, z2 in zip(p1, p2):
+                np.testing.assert_array_equal(z1.interval().lo, z2.interval().lo)
+                np.testing.assert_array_equal(z1.interval().hi, z2.interval().hi)
