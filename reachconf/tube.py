@@ -159,11 +159,18 @@ class ReachTube:
         def make(ids):
             return piece(int(ids[0])) if ids.size == 1 else SetUnion([piece(int(p)) for p in ids])
 
+        def plane(dims):  # checked here: the compiled call has no bounds checks
+            dims = [int(d) for d in dims]
+            if len(dims) != 2 or not all(0 <= d < len(model.state_names) for d in dims):
+                raise SetError(f"polygons need two state indices in 0..{len(model.state_names) - 1}, got {dims!r}")
+            return dims
+
         def polygons(c, G, off, ids, dims):
-            V, starts = piece_polygons(c, G, off, np.ascontiguousarray(ids, dtype=np.int64), int(dims[0]), int(dims[1]))
+            V, starts = piece_polygons(c, G, off, np.ascontiguousarray(ids, dtype=np.int64), dims[0], dims[1])
             return np.split(V, starts[1:-1]) if ids.size else []
 
         def tp_polygons(dims):  # X0 first, then the distinct pieces in id order, as distinct_pieces()
+            dims = plane(dims)
             ids = lay.tp_distinct()
             own, standing = ids[ids < P], ids[ids >= P] - P
             return ([p.project(dims).polygon() for p in run.X0.pieces]
@@ -175,7 +182,7 @@ class ReachTube:
                        lambda ids: run.X0 if ids.size == 0 else make(ids), tp_polygons,
                        lambda j: np.zeros(0, dtype=np.int64) if j == 0 else lay.tp_row(j - 1))  # fmt: skip
         ti = PieceSets(lay.ti_indptr, lay.ti_fill, lambda ids: make(np.asarray(ids, dtype=np.int64) + P),
-                       lambda dims: polygons(run.ti_c, run.ti_G, off_ti, lay.ti_distinct(), dims), lay.ti_row)  # fmt: skip
+                       lambda dims: polygons(run.ti_c, run.ti_G, off_ti, lay.ti_distinct(), plane(dims)), lay.ti_row)  # fmt: skip
         meta = {"model": model.name, "options": {k: _plain(v) for k, v in run.options.__dict__.items()}}
         tube = cls(lay.times, tp, lay.intervals, ti, model.state_names, model=model, splits=run.splits,
                    seconds=run.seconds, meta=meta, log=run.log)  # fmt: skip

@@ -124,7 +124,8 @@ class PieceLayout:
     :meth:`interval_hulls` needs neither.
     """
 
-    def __init__(self, times, intervals, ti_indptr, tp_indptr, ti_fill, tp_fill, hulls, ti_distinct, tp_distinct):
+    def __init__(self, times, intervals, ti_indptr, tp_indptr, ti_fill, tp_fill, hulls, ti_distinct, tp_distinct,
+                 ti_row, tp_row):  # fmt: skip
         self.times = times
         self.intervals = intervals
         self.ti_indptr = ti_indptr
@@ -135,8 +136,9 @@ class PieceLayout:
         #: sorted ids of the pieces the time intervals (time points) list, without the lists
         self.ti_distinct = ti_distinct
         self.tp_distinct = tp_distinct
-        #: ``j -> ids`` of one row (set by :func:`piece_layout`)
-        self.ti_row = self.tp_row = None
+        #: ``j -> ids`` of one row, without the column arrays
+        self.ti_row = ti_row
+        self.tp_row = tp_row
 
     def _indices(self, which):
         if which not in self._built:
@@ -282,7 +284,5 @@ def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
             return tp_indices[tp_indptr[j] : tp_indptr[j + 1]]
     if np.any(np.diff(ti_indptr) == 0) or np.any(np.diff(tp_indptr) == 0):
         raise ReachError("internal error: a time of the adaptive tube has no reachable set")
-    lay = PieceLayout(times, np.column_stack([grid[:-1], grid[1:]]), ti_indptr, tp_indptr, ti_fill, tp_fill, hulls,
-                      ti_distinct, tp_distinct)  # fmt: skip
-    lay.ti_row, lay.tp_row = ti_row, tp_row
-    return lay
+    return PieceLayout(times, np.column_stack([grid[:-1], grid[1:]]), ti_indptr, tp_indptr, ti_fill, tp_fill, hulls,
+                       ti_distinct, tp_distinct, ti_row, tp_row)  # fmt: skip

@@ -269,24 +269,20 @@ def _robust_cov(J, r, n_data, blocks_by):
     its covariances are then inf/NaN, without numpy's warnings.
     """
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        return _robust_cov_unguarded(J, r, n_data, blocks_by)
-
-
-def _robust_cov_unguarded(J, r, n_data, blocks_by):
-    B = J.T @ J
-    Binv = np.linalg.pinv(B)
-    Jd = J[:n_data] * r[:n_data, None]
-    out = {}
-    for name, ids in blocks_by.items():
-        _, first = np.unique(ids, return_index=True)
-        first = np.sort(first)
-        C = first.size
-        if C < 2:
-            continue
-        S = np.add.reduceat(Jd, first, axis=0)  # scores per cluster
-        M = S.T @ S * C / (C - 1)
-        out[name] = (Binv @ M @ Binv, int(C))
-    return out
+        B = J.T @ J
+        Binv = np.linalg.pinv(B)
+        Jd = J[:n_data] * r[:n_data, None]
+        out = {}
+        for name, ids in blocks_by.items():
+            _, first = np.unique(ids, return_index=True)
+            first = np.sort(first)
+            C = first.size
+            if C < 2:
+                continue
+            S = np.add.reduceat(Jd, first, axis=0)  # scores per cluster
+            M = S.T @ S * C / (C - 1)
+            out[name] = (Binv @ M @ Binv, int(C))
+        return out
 
 
 def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: DiagnoseOptions, cache: dict,

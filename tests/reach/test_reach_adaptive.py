@@ -237,6 +237,10 @@ def test_adaptive_tube_polygons_from_the_stored_arrays_match_the_sets(horizon):
         assert len(fast) == len(slow) > 10
         for a, b in zip(fast, slow):
             np.testing.assert_array_equal(a, b)
+        # the compiled call has no bounds checks: dimensions are checked before it
+        for bad in ([0, 2], [-1, 0], [0]):
+            with pytest.raises(rc.SetError, match="two state indices"):
+                sets.distinct_polygons(bad)
 
 
 
