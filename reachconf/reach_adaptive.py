@@ -315,14 +315,13 @@ def _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=None,
     fpar[ak.P_ERR_ORDER] = float(opts.error_order)
     fpar[ak.P_INTER_ORDER] = float(opts.intermediate_order)
     fpar[ak.P_ROUND] = float(opts.rounding)
-    fpar[ak.P_SPLIT_FRAC] = SPLIT_FRACTION
-    fpar[ak.P_SLACK] = SPLIT_SLACK * float(opts.alg.error_budget)
+    fpar[ak.P_SPLIT_FRAC], fpar[ak.P_SLACK] = SPLIT_FRACTION, SPLIT_SLACK * float(opts.alg.error_budget)
     fpar[ak.P_T0] = float(samples[0])
-    fpar[ak.P_EXCESS] = FLOOR_EXCESS
-    fpar[ak.P_EXCESS_REL] = FLOOR_EXCESS_REL
+    fpar[ak.P_EXCESS], fpar[ak.P_EXCESS_REL] = FLOOR_EXCESS, FLOOR_EXCESS_REL
     fpar[ak.P_LIN_GOAL] = LINEAR_SHARE
     fpar[ak.P_HORIZON] = horizon
     fpar[ak.P_DIST_W] = RESTART_W
+    fpar[ak.P_RTOL], fpar[ak.P_ATOL] = float(opts.alg.rtol), float(opts.alg.atol)  # the rates' radius floor
     ipar = np.zeros(ak.N_IPAR, dtype=np.int64)
     ipar[ak.I_KAPPA_MODE] = kappa_mode
     ipar[ak.I_TAYLOR_MIN] = int(opts.taylor_terms)

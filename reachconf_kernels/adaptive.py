@@ -8,9 +8,10 @@ reachability analysis of nonlinear systems", HSCC 2021 (CORA's
 ``lin-adaptive``), with a simpler controller and splitting:
 
 * **error budget** ``beta`` (1/s): the abstraction error ``L`` enters the
-  set as an input, so ``rho = max_i L_i / rad_i`` (error rate relative to the
-  radius of the time-point set) is the relative growth rate it causes.  A step
-  is accepted when ``rho <= beta``.
+  set as an input, so ``rho = mean_i L_i / (rad_i + dt L_i)`` (error rate relative to the
+  radius of the time-point set, per state at least ``rtol |x_i| + atol``:
+  :func:`rate_radius`) is the relative growth rate it causes.  A step is
+  accepted when ``rho <= beta``.
 * **time step**: ``rho(dt) ~ rho0 + s dt``, where ``rho0`` is the floor, the
   error over the start set itself (``dt -> 0``).  A rejected step is retried
   with the step this model predicts for ``0.9 beta``; accepted steps grow it.
@@ -84,8 +85,8 @@ N_REC = 10
 # fpar entries
 (P_BUDGET, P_DT_MAX, P_DT_MIN, P_RED_SHARE, P_MAX_ORDER, P_ERR_ORDER, P_INTER_ORDER, P_ROUND, P_SPLIT_FRAC,
  P_SPLIT_AFTER, P_SLACK, P_T0, P_EXCESS, P_EXCESS_REL, P_LIN_GOAL, P_HORIZON,
- P_DIST_W) = range(17)
-N_FPAR = 17
+ P_DIST_W, P_RTOL, P_ATOL) = range(19)
+N_FPAR = 19
 # ipar entries
 I_KAPPA_MODE, I_HAVE3, I_TAYLOR_MIN, I_MAX_ITER, I_CAN_SPLIT, I_KEEP, I_LAST = range(7)
 N_IPAR = 7
@@ -135,6 +136,20 @@ def relative_rate(err, rad, dt):
         if den > 0.0:
             rho += err[i] / den
     return rho / err.shape[0]
+
+
+@njit(cache=True)
+def rate_radius(G, c, fpar):
+    """Radius (n,) the error rates are measured against: the set's interval radius, but per state at least
+    ``rtol |c_i| + atol`` (``fpar[P_RTOL]``, ``fpar[P_ATOL]``).
+
+    Relative to the radius alone, any error is an infinite growth rate on a point or a very thin set: the steps
+    shrank to their limit (a Lotka-Volterra system from a point failed at t = 5e-7 s) or, from a box of radius
+    1e-9, took 89,000 steps for 5 s.  Below the floor the budget is absolute, as an ODE solver's tolerance."""
+    rad = row_radius(G)
+    for i in range(rad.shape[0]):
+        rad[i] = max(rad[i], fpar[P_RTOL] * abs(c[i]) + fpar[P_ATOL])
+    return rad
 
 
 @njit(cache=True)
@@ -208,7 +223,7 @@ def floor_rates(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt):
     e0, st = error_floor(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar[P_ERR_ORDER], err_tol)
     if st != 0:
         return np.inf, np.inf
-    rad = row_radius(G)
+    rad = rate_radius(G, c, fpar)
     return relative_rate(e0, rad, dt), relative_rate(e0, rad, 0.0)
 
 
@@ -307,7 +322,7 @@ def adaptive_run(
         A = np.ascontiguousarray(J[:, :n])
         BW, fz = mat_mat(J[:, n + u.shape[0] :], WG), np.empty(n)
         f(zq, p, fz)
-        w_rate = relative_rate(np.abs(BW).sum(axis=1), row_radius(G), 0.0)  # the disturbance's growth rate
+        w_rate = relative_rate(np.abs(BW).sum(axis=1), rate_radius(G, c, fpar), 0.0)  # the disturbance's growth rate
         rho0 = -1.0
         rho_lim = -1.0
         futile = False  # last budget and the rate within FUTILE_SHRINK of the floor's dt -> 0 limit
@@ -357,7 +372,7 @@ def adaptive_run(
                 err_warm[:] = 0.0
                 continue
             last_e = e
-            last_rad = row_radius(Gtp)
+            last_rad = rate_radius(Gtp, ctp, fpar)
             rho = relative_rate(e, last_rad, dt)
             if rho <= beta:
                 break

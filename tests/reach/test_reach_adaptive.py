@@ -140,7 +140,8 @@ def test_adaptive_stops_at_its_memory_share(monkeypatch):
 
 @pytest.mark.parametrize("kw", [{"error_budget": 0.0}, {"error_budget": float("inf")}, {"max_order": 0.5},
                                 {"max_steps": 0}, {"max_steps": 2.5}, {"max_order": 1e6}, {"budget_retries": -1},
-                                {"budget_retries": 1.5}, {"budget_retries": True}])  # fmt: skip
+                                {"budget_retries": 1.5}, {"budget_retries": True}, {"rtol": -1e-3},
+                                {"atol": float("nan")}, {"rtol": float("inf")}, {"atol": True}])  # fmt: skip
 def test_adaptive_bad_parameters(kw):
     with pytest.raises(rc.OptionsError, match="AdaptiveReach"):
         rc.ReachOptions(algorithm=rc.AdaptiveReach(**kw))
