@@ -37,6 +37,9 @@ from numba import njit
 from reachconf_kernels.linsys import exp_remainder, taylor_powers
 from reachconf_kernels.small_linalg import abs_row_sums_of_product, mat_vec
 
+#: Most Taylor terms of the exponential per step; a step that needs more is shortened (:func:`taylor_terms_for`).
+MAX_TAYLOR_TERMS = 20
+
 
 @njit(cache=True)
 def linear_excess(A, BW, fc, rad, dt, r):
@@ -96,3 +99,28 @@ def linear_step_cap(A, BW, fc, rad, dt, r, goal, dt_floor, horizon):
     if den <= 0.0:
         return dt_floor
     return max(dt_floor, dt * 0.9 * goal * den / num)
+
+
+@njit(cache=True)
+def taylor_terms_for(A, dt, r_min):
+    """Smallest ``r >= r_min`` with ``(|A|_inf dt)^(r+1)/(r+1)! <= 1e-2``, at most :data:`MAX_TAYLOR_TERMS`.
+
+    Returns ``(r, fits)``: ``fits`` is False when even that many terms leave a larger first neglected term
+    (``|A|_inf dt`` above about 6): the step is too long for the exponential's series, whose remainder
+    (bounded through ``|A|``, sound) would then swamp the set, and the caller shortens it.
+    """
+    a = 0.0
+    for i in range(A.shape[0]):
+        s = 0.0
+        for j in range(A.shape[1]):
+            s += abs(A[i, j])
+        a = max(a, s)
+    x = a * dt
+    r = r_min
+    term = 1.0
+    for i in range(1, r + 2):
+        term *= x / i
+    while term > 1e-2 and r < MAX_TAYLOR_TERMS:
+        r += 1
+        term *= x / (r + 1)
+    return r, term <= 1e-2
