@@ -127,14 +127,9 @@ def rate_radius(G, c, fpar):
     Relative to the radius alone, any error is an infinite growth rate on a point or a very thin set: the steps
     shrank to their limit (a Lotka-Volterra system from a point failed at t = 5e-7 s) or, from a box of radius
     1e-9, took 89,000 steps for 5 s.  Below the floor the budget is absolute, as an ODE solver's tolerance."""
-    n = G.shape[0]
-    rad = np.zeros(n)
-    for j in range(G.shape[1]):
-        for i in range(n):
-            rad[i] += abs(G[i, j])
-    rtol, atol = fpar[P_RTOL], fpar[P_ATOL]
-    for i in range(n):
-        rad[i] = max(rad[i], rtol * abs(c[i]) + atol)
+    rad = row_radius(G)
+    for i in range(rad.shape[0]):
+        rad[i] = max(rad[i], fpar[P_RTOL] * abs(c[i]) + fpar[P_ATOL])
     return rad
 
 
