@@ -44,7 +44,7 @@ __all__ = ["ReachOptions", "reach", "reach_run", "ReachRun", "ReachStopped"]
 # ---------------------------------------------------------------------------
 def sample_times(times) -> np.ndarray:
     """The sample times of ``times`` (a final time ``T``: ``[0, T]``), checked (:class:`ReachError` if bad)."""
-    arr = np.asarray(times, dtype=float)
+    arr = np.array(times, dtype=float)  # a writeable copy: the compiled kernels take no read-only arrays (TestCase.t is one)
     if arr.ndim == 0:
         if not (math.isfinite(float(arr)) and float(arr) > 0):
             raise ReachError(f"times: the final time must be a positive number, got {times!r}")

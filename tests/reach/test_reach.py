@@ -317,6 +317,23 @@ def test_reach_bad_input():
         rc.ReachOptions(time_step=0.0)
 
 
+@pytest.mark.parametrize("algorithm", ["adaptive", "lin", "poly"])
+def test_reach_takes_read_only_arrays(algorithm):
+    """A TestCase's arrays are read-only; the compiled kernels take none, so reach copies them (it raised
+    numba's TypeError for read-only sample times with the adaptive default)."""
+    t = np.linspace(0.0, 1.0, 11)
+    U = np.tile([0.5, 0.01], (t.size, 1))
+    opts = rc.ReachOptions(algorithm=algorithm, tensor_order=3 if algorithm == "poly" else 2)
+    expected = rc.reach(bicycle(), BIKE_X0, t, inputs=U, options=opts).bounds()
+    t.flags.writeable = False
+    U.flags.writeable = False
+    got = rc.reach(bicycle(), BIKE_X0, t, inputs=U, options=opts).bounds()
+    np.testing.assert_array_equal(got, expected)
+    case = rc.TestCase("c", "g", t, U, np.zeros((t.size, 2)), ("ax", "delta"), ("X", "Y"))
+    assert not case.t.flags.writeable
+    np.testing.assert_array_equal(rc.reach(bicycle(), BIKE_X0, case.t, inputs=case.U, options=opts).bounds(), expected)
+
+
 def test_explosion_error_names_time_state_term_and_remedy():
     big = rc.Interval([-3.0, -3.0], [3.0, 3.0])
     with pytest.raises(rc.ReachError) as info:
