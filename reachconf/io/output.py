@@ -34,7 +34,7 @@ try:  # POSIX
 except ImportError:  # pragma: no cover - Windows: exclusive creation of the lock file instead
     fcntl = None
 
-__all__ = ["check_output_folder", "check_output_file", "OutputLock", "RunOutputs", "LOCK_NAME"]
+__all__ = ["check_output_folder", "check_output_file", "check_not_input", "OutputLock", "RunOutputs", "LOCK_NAME"]
 
 #: name of the lock file in a locked output folder
 LOCK_NAME = ".reachconf.lock"
@@ -59,6 +59,8 @@ def check_output_folder(path, option: str = "--out") -> Path:
         ``path`` is a file, a parent is a file, or the folder is not writable
         (the message names ``path`` and ``option``).
     """
+    if not str(path):
+        raise OutputError(f"{option}: the folder name is empty")
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise OutputError(f"{path}: {option} must be a folder, but it is a file")
@@ -74,11 +76,38 @@ def check_output_file(path, option: str = "--json") -> Path:
     OutputError
         ``path`` is a folder, its parent is a file, or the folder is not writable.
     """
+    text = os.fspath(path)
+    if not text:
+        raise OutputError(f"{option}: the file name is empty")
+    if text.endswith(("/", os.sep)):
+        raise OutputError(f"{text}: {option} must be a file name, but it ends with {text[-1]!r} (a folder)")
     path = Path(path)
     if path.is_dir():
         raise OutputError(f"{path}: {option} must be a file name, but it is a folder")
     _probe(make_folder(path.parent, path, option), path, option)
     return path
+
+
+def check_not_input(path, option: str, files=(), folders=()) -> None:
+    """An output must not overwrite what the run reads: raise if ``path`` is one of ``files`` or lies in one of ``folders``.
+
+    ``files``: the run file (and other input files); ``folders``: the test-suite folders (a result written
+    there would replace a case file or ``suite.toml``, or be read back as a case by the next run).
+
+    Raises
+    ------
+    OutputError
+        Naming ``path``, ``option`` and the input it would overwrite.
+    """
+    target = Path(path).resolve()
+    for f in files:
+        if Path(f).resolve() == target:
+            raise OutputError(f"{path}: {option} is the run's input {f}; choose another {option}")
+    for d in folders:
+        d = Path(d).resolve()
+        if target == d or d in target.parents:
+            raise OutputError(f"{path}: {option} lies in the test-suite folder {d}, which the run reads; "
+                              f"choose another {option}")  # fmt: skip
 
 
 def _describe_run() -> str:
@@ -190,6 +219,7 @@ class RunOutputs:
     def __init__(self, command: str, folder=None, json=None):
         self.command = command
         self.folder = None if folder is None else Path(folder)
+        self._json_text = None if json is None else os.fspath(json)  # a trailing "/" (a folder) is lost in Path
         self.json = None if json is None else Path(json)
         self._locks = []
 
@@ -200,7 +230,7 @@ class RunOutputs:
                 check_output_folder(self.folder, "--out")
                 self._locks.append(OutputLock(self.folder, "--out").acquire())
             if self.json is not None:
-                check_output_file(self.json, "--json")
+                check_output_file(self._json_text, "--json")
                 self._locks.append(OutputLock(self.json, "--json").acquire())
         except BaseException:
             self.close()

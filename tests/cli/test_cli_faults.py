@@ -90,6 +90,34 @@ def test_out_that_is_a_file_fails_before_the_work(capsys, monkeypatch, run_file,
     assert (tmp_path / "F").read_text() == "an existing file"
 
 
+@pytest.mark.parametrize("command", sorted(WORK))
+def test_outputs_never_overwrite_the_runs_inputs(capsys, monkeypatch, run_file, tmp_path, command):
+    """--json onto the run file, a case file or suite.toml, or --out into the suite folder, replaced the user's
+    inputs (or left results the next run read as cases): refused before the work, every input unchanged."""
+    patch(monkeypatch, WORK[command], no_work)
+    suite = run_file.parent / "suite"
+    before = {p: p.read_bytes() for p in [run_file, *suite.iterdir()]}
+    case = sorted(suite.glob("*.csv"))[0]
+    for option, target, needle in [("--json", run_file, "is the run's input"),
+                                   ("--json", case, "lies in the test-suite folder"),
+                                   ("--json", suite / "suite.toml", "lies in the test-suite folder"),
+                                   ("--json", suite / "new.json", "lies in the test-suite folder"),
+                                   ("--out", suite, "lies in the test-suite folder"),
+                                   ("--out", suite / "sub", "lies in the test-suite folder")]:
+        status, _, err = main(capsys, command, run_file, option, target)
+        one_line_error(status, err, f"{target}: {option}", needle)
+    assert {p: p.read_bytes() for p in [run_file, *suite.iterdir()]} == before
+
+
+@pytest.mark.parametrize("bad, needle", [("", "the file name is empty"), ("res/", "ends with '/'")])
+def test_json_must_be_a_file_name(capsys, monkeypatch, run_file, tmp_path, bad, needle):
+    patch(monkeypatch, WORK["conform"], no_work)
+    monkeypatch.chdir(tmp_path)
+    status, _, err = main(capsys, "conform", run_file, "--json", bad)
+    one_line_error(status, err, "--json", needle)
+    assert not (tmp_path / "res").exists()
+
+
 def test_unwritable_output_is_named_by_the_users_path(capsys, monkeypatch, run_file, tmp_path):
     import tempfile
 
