@@ -25,7 +25,7 @@ from reachconf.conformance.alpha import alpha_search, reachset_check
 from reachconf.conformance.bounds import minimize_box, step1_trace
 from reachconf.conformance.merge import merge_groups
 from reachconf.conformance.trace import TraceOptions
-from reachconf.errors import OptionsError
+from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.cases import suite_cases
 from reachconf.io.results import JsonResult
 from reachconf.model.core import require_model
@@ -302,6 +302,9 @@ def _synth_case(job) -> CaseSynthesis:
     t0 = time.perf_counter()
     case12 = case.decimate(options.step2_decimate)
     start, step1_reason = step1_trace(model, case12, V, options.step1_method, topts)
+    if not np.all(np.isfinite(start.W_trace)):
+        raise ConformanceError(f"case {case.name!r}: synthesis step 1 found no disturbance trace: "
+                               f"{step1_reason or start.message}")  # fmt: skip
     W_TC = start.disturbance_box()
     steps["step1"] = time.perf_counter() - t0
     t0 = time.perf_counter()

@@ -35,7 +35,7 @@ from reachconf.conformance.windows import (
     summarize_windows,
     verdict_in_windows,
 )
-from reachconf.errors import OptionsError
+from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.cases import case_arrays
 from reachconf.io.results import JsonResult
 from reachconf.model.core import require_model
@@ -212,7 +212,16 @@ class TraceResult(JsonResult):
         self.verdict = Verdict.of(self.conformant) if self.verdict is None else Verdict(self.verdict)
 
     def disturbance_box(self) -> Interval:
-        """Interval hull of the disturbance trace (eqs. 62–66)."""
+        """Interval hull of the disturbance trace (eqs. 62–66).
+
+        Raises
+        ------
+        ConformanceError
+            The trace is not finite (no disturbance trace was found: the message says why).
+        """
+        if not np.all(np.isfinite(self.W_trace)):
+            why = self.message or self.reason or "the trace is not finite"
+            raise ConformanceError(f"case {self.case!r}: no disturbance trace to take the box of ({why})")
         return Interval(self.W_trace.min(axis=0), self.W_trace.max(axis=0))
 
     def error_box(self) -> Interval:

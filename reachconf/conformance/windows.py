@@ -316,9 +316,12 @@ def _perstep_window(model, t, U, Yx, x_start, V_lo, V_hi, options):
     S[0] = x_start
     weights = np.ascontiguousarray(perstep_weights(model, Yx, V_lo, V_hi, options.objective))
     W0 = np.zeros((t.size - 1, model.q))
-    Wt, _ = perstep_fit(model.compiled().f, S, np.ascontiguousarray(Yx), np.ascontiguousarray(U[:-1]), np.diff(t),
-                        model.param_vector, weights, W0, int(options.substeps), int(options.gauss_newton_iterations),
-                        anchor == "simulated")  # fmt: skip
+    try:
+        Wt, _ = perstep_fit(model.compiled().f, S, np.ascontiguousarray(Yx), np.ascontiguousarray(U[:-1]), np.diff(t),
+                            model.param_vector, weights, W0, int(options.substeps), int(options.gauss_newton_iterations),
+                            anchor == "simulated")  # fmt: skip
+    except np.linalg.LinAlgError:  # a step's Gauss-Newton system went non-finite (e.g. a glitch of 1e4 in a sample)
+        Wt = np.full((t.size - 1, model.q), np.nan)  # no per-step trace: its simulation is "diverged (NaN/inf)"
     return Wt, anchor
 
 
