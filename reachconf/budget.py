@@ -13,13 +13,14 @@ projects the whole run from the first window and stops before the rest.
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 import time
 
-from reachconf.errors import ResourceError
+from reachconf.errors import OptionsError, ResourceError
 
-__all__ = ["available_memory", "check_memory", "TimeBudget", "format_bytes", "tube_bytes_per_step",
+__all__ = ["available_memory", "check_memory", "check_time_limit", "TimeBudget", "format_bytes", "tube_bytes_per_step",
            "progress_bar", "peak_memory"]
 
 
@@ -150,6 +151,16 @@ def progress_bar(enabled, total: float, desc: str, unit: str, auto_above: float,
     return tqdm(total=int(total), desc=desc, unit=unit, unit_scale=unit == "sample", leave=False, mininterval=0.5)
 
 
+def check_time_limit(limit, name: str = "time_limit"):
+    """``limit`` as a float > 0 (seconds), or None; :class:`OptionsError` naming ``name`` otherwise."""
+    if limit is None:
+        return None
+    ok = isinstance(limit, (int, float)) and not isinstance(limit, bool) and math.isfinite(limit) and limit > 0
+    if not ok:
+        raise OptionsError(f"{name} must be a positive number of seconds (or None), got {limit!r}")
+    return float(limit)
+
+
 class TimeBudget:
     """Stop a windowed run early when its projected duration exceeds ``limit`` seconds.
 
@@ -161,7 +172,7 @@ class TimeBudget:
 
     def __init__(self, what: str, limit: float | None, min_fraction: float = 0.0):
         self.what = what
-        self.limit = None if limit is None else float(limit)
+        self.limit = check_time_limit(limit)
         self.start = time.perf_counter()
         self.min_fraction = float(min_fraction)
         self.checked = False

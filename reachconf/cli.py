@@ -34,7 +34,7 @@ from pathlib import Path
 
 from reachconf import commands
 from reachconf.blas_threads import one_blas_thread
-from reachconf.cli_cases import add_pool_options, apply_worker_timeout, pool_settings
+from reachconf.cli_cases import add_pool_options, apply_worker_timeout, pool_settings, positive_seconds
 from reachconf.errors import DataError, ReachconfError
 
 __all__ = ["main", "build_parser", "EXIT_OK", "EXIT_USER_ERROR", "EXIT_UNDECIDED", "EXIT_WORKERS_LOST",
@@ -344,7 +344,7 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--out", help="folder for pictures and result files")
         if pool:  # the diagnosis of one suite runs in this process: no worker options there
             add_pool_options(sp, commands.positive_int)
-        sp.add_argument("--time-limit", type=float, default=None, dest="time_limit",
+        sp.add_argument("--time-limit", type=positive_seconds, default=None, dest="time_limit",
                         help="seconds per case and kind; a run projected to take longer stops after its first part")  # fmt: skip
 
     sp = sub.add_parser("demo", help="run the main job on the shipped example suite")

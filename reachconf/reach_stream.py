@@ -22,7 +22,10 @@ import math
 
 import numpy as np
 
-from reachconf.budget import TimeBudget
+from reachconf.budget import TimeBudget, check_time_limit
+from reachconf.checks import check_options
+from reachconf.errors import OptionsError
+from reachconf.model.core import require_model
 from reachconf.reach import sample_times, integration_steps, reach_run
 from reachconf.reach_adaptive_stream import streamed_grid
 from reachconf.reach_options import AdaptiveReach, ReachOptions
@@ -66,7 +69,12 @@ def reach_streamed(model, X0, times, inputs=None, W=None, options=None, max_sets
         adaptive steps in its sample interval, and ``tube.log`` holds the
         choices of every chunk.
     """
-    if isinstance((options or ReachOptions()).alg, AdaptiveReach):
+    require_model(model, "reach_streamed")
+    options = check_options(options, ReachOptions, "reach_streamed")
+    check_time_limit(time_limit)
+    if not (isinstance(max_sets, int) and not isinstance(max_sets, bool) and max_sets >= 2):
+        raise OptionsError(f"reach_streamed: max_sets must be an integer >= 2, got {max_sets!r}")
+    if isinstance(options.alg, AdaptiveReach):
         return _streamed_adaptive(model, X0, times, inputs, W, options, max_sets, monitor, time_limit)
     S = integration_steps(times, options)
     keep_every, bounds, ti_kept, tp_kept, budget = _accumulators(model, S, max_sets, time_limit)

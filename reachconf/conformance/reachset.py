@@ -9,7 +9,7 @@ import numpy as np
 from scipy.optimize import linprog
 
 from reachconf.checks import check_options
-from reachconf.budget import TimeBudget, check_memory, tube_bytes_per_step
+from reachconf.budget import TimeBudget, check_memory, check_time_limit, tube_bytes_per_step
 from reachconf.errors import ConformanceError, ReachError
 from reachconf.io.cases import case_arrays
 from reachconf.io.results import JsonResult
@@ -247,6 +247,7 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
     t0 = time.perf_counter()
     require_model(model, "reachset_conformance")
     options = check_options(options, ReachOptions, "reachset_conformance")
+    check_time_limit(time_limit)
     t, U, Y = case_arrays(model, case)
     name = getattr(case, "name", "case")
     if X0 is None:

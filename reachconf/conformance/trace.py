@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from reachconf.budget import TimeBudget, check_memory
+from reachconf.budget import TimeBudget, check_memory, check_time_limit
 from reachconf.checks import check_field_types, check_options
 from reachconf.conformance.windows import (
     describe_violation,
@@ -453,6 +453,7 @@ def trace_conformance(model, case, W, V, method: str = "auto", options: TraceOpt
     where = "trace_disturbances" if _unbounded else "trace_conformance"
     require_model(model, where)
     options = check_options(options, TraceOptions, where)
+    check_time_limit(time_limit)
     if not isinstance(method, str) or method not in METHODS:
         raise OptionsError(f"{where}: method must be one of {METHODS}, got {method!r}")
     t, U, Y = case_arrays(model, case)

@@ -410,3 +410,10 @@ def test_ctrl_c_lost_inside_a_c_extension_import_is_still_an_interrupt(capsys, m
     patch(monkeypatch, "reachconf.conformance.synthesis.synthesize_W", lambda *a, **k: 1 / 0)
     with pytest.raises(ZeroDivisionError):  # the next run without Ctrl-C: a bug stays a traceback
         cli.main(["synth", str(run_file)])
+
+
+@pytest.mark.parametrize("bad", ["-1", "0", "nan", "inf"])
+def test_time_limit_must_be_positive_seconds(capsys, monkeypatch, run_file, bad):
+    patch(monkeypatch, WORK["conform"], no_work)
+    status, _, err = main(capsys, "conform", run_file, "--time-limit", bad)
+    one_line_error(status, err, "--time-limit", "positive, finite number of seconds")
