@@ -7,6 +7,8 @@ smallest step, highest tensor order, splits and error budgets it tried).
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from reachconf.errors import ReachError
@@ -77,6 +79,13 @@ def adaptive_failure(model, options, state, t, c, G, smallest, highest, splits, 
     lo, hi = zk.interval_hull(np.ascontiguousarray(c), np.ascontiguousarray(G))
     box = ", ".join(f"{nm} in [{a:.4g}, {b:.4g}]" for nm, a, b in zip(model.state_names, lo, hi))
     what = STATUS.get(status, "the step failed")
+    if status == 1:  # the guard's own text: which operation, in which expression
+        try:
+            guards = model.compiled(order=max(int(highest), 2), remainder=options.remainder).guards
+            if 0 < bad_state <= len(guards):  # the generated code names the model's symbols s_<name>
+                what = "a guarded interval operation failed: " + re.sub(r"\bs_(\w+)", r"\1", guards[bad_state - 1])
+        except Exception:  # noqa: BLE001 - the message falls back to the generic text
+            pass
     where = f"at t = {t:.6g} s" + (f" in state {state_name!r} through the {term}" if state_name else "")
     tried = (f"time steps down to {smallest:.3g} s (limit {dt_min:.3g} s), tensor order up to "
              f"{highest}, zonotope order up to {options.alg.max_order:g}, {splits} of {max_splits} splits")  # fmt: skip

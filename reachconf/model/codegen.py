@@ -236,7 +236,15 @@ def compile_model(model, order: int = 2, remainder: str = "taylor") -> CompiledM
     meta_path = folder / f"{modname}.npz"
     from_cache = path.exists() and meta_path.exists()
     if not from_cache:
-        source, meta = generate_source(model, order, remainder)
+        try:
+            source, meta = generate_source(model, order, remainder)
+        except ModelError:
+            raise
+        except Exception as exc:  # e.g. sympy cannot print the derivative of floor: name the model, not the printer
+            raise ModelError(f"model {model.name!r}: cannot generate code for its derivatives "
+                             f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); write the "
+                             f"dynamics with +, -, *, /, powers, sqrt, exp, log, sin, cos, tan, atan, tanh, Abs, Min, "
+                             f"Max") from None  # fmt: skip
         atomic_write(path, source)
         buf = io.BytesIO()
         np.savez(buf, **meta)

@@ -216,6 +216,14 @@ class Model:
             raise ModelError(f"model {self.name!r}: {where} is not a valid expression: {exc}") from None
         if not isinstance(expr, sp.Expr):
             raise ModelError(f"model {self.name!r}: {where} is not a scalar expression: {expr!r}")
+        if expr.has(sp.nan, sp.oo, -sp.oo, sp.zoo):
+            raise ModelError(f"model {self.name!r}: {where} is not finite: {expr}")
+        undefined = sorted({str(f.func) for f in expr.atoms(sp.core.function.AppliedUndef)})
+        if undefined:
+            raise ModelError(f"model {self.name!r}: {where} uses the undefined function(s) {undefined}; "
+                             f"write them out with +, -, *, /, powers and the usual elementary functions")  # fmt: skip
+        if expr.has(sp.Derivative, sp.Integral):
+            raise ModelError(f"model {self.name!r}: {where} holds an unevaluated derivative or integral: {expr}")
         # Replace look-alike symbols (e.g. created without real=True) by ours.
         subs = {}
         for sym in expr.free_symbols:

@@ -50,6 +50,22 @@ class PointPrinter(PythonCodePrinter):
         return f"math.pow({self._print(base)}, {self._print(exp)})"
 
 
+    # Derivatives of Abs, Min, Max and sign (sympy: sign, Heaviside, DiracDelta) at a point: their values where the
+    # function is differentiable.  Only the point Jacobian/Hessian (the expansion) use them; the remainder over a set
+    # comes from the tape, whose guards stop a reach whose set crosses a kink (reachconf.model.tape).
+    def _print_sign(self, expr):
+        a = self._print(expr.args[0])
+        return f"(0.0 if ({a}) == 0.0 else math.copysign(1.0, ({a})))"
+
+    def _print_Heaviside(self, expr):
+        a = self._print(expr.args[0])
+        h0 = self._print(expr.args[1]) if len(expr.args) > 1 else "0.5"
+        return f"(1.0 if ({a}) > 0.0 else (0.0 if ({a}) < 0.0 else {h0}))"
+
+    def _print_DiracDelta(self, expr):
+        return "0.0"
+
+
 _POINT = PointPrinter({"fully_qualified_modules": True, "standard": "python3"})
 
 

@@ -314,7 +314,10 @@ def build_tape(exprs, z_symbols, p_symbols, guards: list, directional=None, grou
         for i in range(n):
             if order in tensors:
                 mine = [e for key, e in tensors[order].items() if key[0] == i]
-                complete[order - 2, i] = graph_size(mine) <= tensor_budget * graph_size([exprs[i]]) + 64
+                # derivatives of Abs, Min, Max (sign, Heaviside, DiracDelta) are left to Taylor mode, whose guards
+                # stop a set that crosses the kink; an output with such an entry has no tensor form at all
+                smooth = not any(e.has(sp.DiracDelta, sp.Heaviside, sp.sign) for e in mine)
+                complete[order - 2, i] = smooth and graph_size(mine) <= tensor_budget * graph_size([exprs[i]]) + 64
     outs = []
     if grouped:
         rec.grouped = True

@@ -1,0 +1,73 @@
+"""Abs, Min and Max in a model's dynamics (found by a bad-input audit: their derivatives, sympy's sign,
+Heaviside and DiracDelta, failed code generation with a printer error, although the generator's own message
+lists them as supported).
+
+The point derivatives take their values where the function is differentiable; the remainder over a set
+comes from Taylor mode, whose guards stop a reach whose set crosses a kink (a ReachError naming the
+operation) — sound by construction, checked here against simulated trajectories.
+"""
+
+import numpy as np
+import pytest
+import sympy as sp
+from scipy.integrate import solve_ivp
+
+import reachconf as rc
+
+
+def _model():
+    return rc.Model(name="nonsmooth_drag", states=("x", "y"), inputs=("u",),
+                    dynamics=lambda s: [-s.x * sp.Abs(s.x) + s.u,
+                                        -sp.Max(s.y, 0.2 * s.y) + sp.Min(s.x, 2.0)])  # fmt: skip
+
+
+def _rhs(t, z, u):
+    x, y = z
+    return [-x * abs(x) + u, -max(y, 0.2 * y) + min(x, 2.0)]
+
+
+def test_point_functions_and_derivatives():
+    m = _model()
+    np.testing.assert_allclose(m.f([0.5, 0.3], [0.1]), [-0.25 + 0.1, -0.3 + 0.5])
+    np.testing.assert_allclose(m.f([-0.5, -0.3], [0.0]), [0.25, 0.06 - 0.5])
+    comp = m.compiled()
+    z, J = np.array([-0.5, -0.3, 0.0]), np.zeros((2, 3))
+    comp.jac(z, m.param_vector, J)
+    np.testing.assert_allclose(J, [[-1.0, 0.0, 1.0], [1.0, -0.2, 0.0]])  # d(-x|x|)/dx = -2|x|; y < 0: Max = 0.2 y
+
+
+def test_reach_is_sound_away_from_the_kinks():
+    m = _model()
+    lo, hi = np.array([0.5, 0.5]), np.array([0.6, 0.6])
+    times = np.linspace(0.0, 3.0, 61)
+    tube = rc.reach(m, rc.Interval(lo, hi), times, inputs=np.full((times.size, 1), 0.5))
+    rng = np.random.default_rng(20261127)
+    corners = np.array(np.meshgrid(*zip(lo, hi))).reshape(2, -1).T
+    for p in np.vstack([corners, rng.uniform(lo, hi, size=(196, 2))]):
+        X = solve_ivp(_rhs, (0.0, 3.0), p, t_eval=times, args=(0.5,), rtol=1e-10, atol=1e-12).y.T
+        assert all(tube.time_point_sets[k].contains(X[k], tol=1e-9) for k in range(times.size))
+    width = tube.final_set().interval()
+    assert np.all(width.hi - width.lo < 0.2)
+
+
+def test_a_set_across_a_kink_stops_with_the_operation_named():
+    m = _model()
+    with pytest.raises(rc.ReachError, match=r"Abs of an interval containing 0 \(not differentiable there\) in Abs\(x\)"):
+        rc.reach(m, rc.Interval([-0.1, 0.5], [0.1, 0.6]), 1.0, inputs=[0.5])
+
+
+@pytest.mark.parametrize("dyn, needle", [
+    (lambda s: [s.x + sp.oo], "is not finite"),
+    (lambda s: [sp.nan * s.x], "is not finite"),
+    (lambda s: [sp.Function("g")(s.x)], r"undefined function\(s\) \['g'\]"),
+    (lambda s: [sp.Derivative(s.x**2, s.x)], "unevaluated derivative"),
+])
+def test_expressions_that_cannot_be_a_model_are_refused_when_built(dyn, needle):
+    with pytest.raises(rc.ModelError, match=needle):
+        rc.Model(name="bad_expr", states=("x",), dynamics=dyn)
+
+
+def test_code_that_cannot_be_generated_names_the_model():
+    m = rc.Model(name="floor_model", states=("x",), dynamics=lambda s: [-sp.floor(s.x)])
+    with pytest.raises(rc.ModelError, match="model 'floor_model': cannot generate code"):
+        m.f([0.5])
