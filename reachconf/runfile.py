@@ -72,8 +72,15 @@ class RunSpec:
         return load_suite(self.suite_path, model=self.model)
 
 
-def resolve_model(name: str, params=None, where="model"):
-    """A built-in model by name or ``module:attribute`` (see :func:`reachconf.models.get_model`)."""
+def resolve_model(name: str, params=None, where="model", base=None):
+    """A built-in model by name or ``module:attribute`` (see :func:`reachconf.models.get_model`).
+
+    ``base``: the run file's folder.  A ``module:attribute`` whose module is not importable but lies there
+    (``base/module.py`` or a package ``base/module/``) is imported from there: the folder joins ``sys.path``
+    for the rest of the process (the local worker processes inherit it).
+    """
+    if isinstance(name, str) and ":" in name and base is not None:
+        _add_model_folder(name.split(":", 1)[0], Path(base))
     if not isinstance(name, str) or not name:
         raise DataError(f"{where}: model must be a non-empty string, got {name!r}")
     if params is not None and not isinstance(params, dict):
@@ -90,6 +97,24 @@ def resolve_model(name: str, params=None, where="model"):
     except ReachconfError as exc:
         raise DataError(f"{where}: {exc}") from None
     return model
+
+
+def _add_model_folder(module_name: str, base: Path) -> None:
+    import importlib.util
+    import sys
+
+    top = module_name.split(".", 1)[0]
+    if not top or not top.isidentifier():
+        return
+    try:
+        if importlib.util.find_spec(top) is not None:
+            return
+    except (ImportError, ValueError):
+        return
+    if (base / f"{top}.py").is_file() or (base / top / "__init__.py").is_file():
+        folder = str(base.resolve())
+        if folder not in sys.path:
+            sys.path.insert(0, folder)
 
 
 def _is_number(value) -> bool:
@@ -152,7 +177,7 @@ def load_run(path) -> RunSpec:
         raise DataError(f"{path}: unknown keys {unknown}; allowed: {sorted(_KEYS)}")
     if "model" not in raw:
         raise DataError(f"{path}: missing key 'model'")
-    model = resolve_model(raw["model"], raw.get("params"), where=f"{path}: model")
+    model = resolve_model(raw["model"], raw.get("params"), where=f"{path}: model", base=path.parent)
     if "suite" not in raw:
         raise DataError(f"{path}: missing key 'suite' (folder of test cases)")
     if not isinstance(raw["suite"], str) or not raw["suite"]:

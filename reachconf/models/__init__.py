@@ -76,8 +76,11 @@ def _user_model(name: str, params: dict):
     try:
         module = importlib.import_module(module_name)
     except Exception as exc:  # ImportError, or whatever the user's module raises while it is imported
+        hint = ""
+        if isinstance(exc, ModuleNotFoundError) and exc.name == module_name.split(".", 1)[0]:
+            hint = " (put its file next to the run file, or its folder on PYTHONPATH)"
         raise ModelError(f"cannot load model {name!r}: importing {module_name!r} failed: "
-                         f"{type(exc).__name__}: {exc}") from None  # fmt: skip
+                         f"{type(exc).__name__}: {exc}{hint}") from None  # fmt: skip
     try:
         obj = getattr(module, attr)
     except AttributeError:

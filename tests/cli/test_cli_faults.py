@@ -417,3 +417,19 @@ def test_time_limit_must_be_positive_seconds(capsys, monkeypatch, run_file, bad)
     patch(monkeypatch, WORK["conform"], no_work)
     status, _, err = main(capsys, "conform", run_file, "--time-limit", bad)
     one_line_error(status, err, "--time-limit", "positive, finite number of seconds")
+
+
+def test_a_model_module_next_to_the_run_file_is_found(capsys, monkeypatch, run_file, tmp_path):
+    """``model = "mymodel:model"`` with mymodel.py beside run.toml failed unless its folder was on PYTHONPATH."""
+    import sys
+
+    name = f"usermodel_{os.getpid()}_{time.monotonic_ns()}"
+    (run_file.parent / f"{name}.py").write_text("from reachconf.models import bicycle_closed_loop as model\n")
+    edit(run_file, 'model = "bicycle_closed_loop"', f'model = "{name}:model"')
+    monkeypatch.chdir(tmp_path)  # not the run file's folder
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    patch(monkeypatch, WORK["conform"], no_work)
+    status, _, err = main(capsys, "conform", run_file, "--case", "nope")
+    one_line_error(status, err, "no test case ['nope']")  # the model was loaded; the case selection fails after it
+    status, _, err = main(capsys, "conform", edit(run_file, f'"{name}:model"', '"not_there_xyz:model"'))
+    one_line_error(status, err, "No module named 'not_there_xyz'", "next to the run file")
