@@ -20,6 +20,20 @@ from reachconf_kernels import zonotope as zk
 __all__ = ["Interval", "Zonotope"]
 
 
+def _dims(dims, n: int) -> list:
+    """``dims`` as a list of indices 0..n-1 (SetError on anything else: negative, fractional, out of range)."""
+    try:
+        dims = list(dims)
+    except TypeError:
+        raise SetError(f"dims must be a sequence of dimension indices, got {dims!r}") from None
+    out = []
+    for d in dims:
+        if isinstance(d, bool) or not isinstance(d, (int, np.integer)) or not 0 <= int(d) < n:
+            raise SetError(f"dimension {d!r} out of range 0..{n - 1} (dims must be integer indices)")
+        out.append(int(d))
+    return out
+
+
 class Interval:
     """Axis-aligned box ``[lo, hi]`` (the boxes of eqs. 62–66, the sets V and W).
 
@@ -100,12 +114,12 @@ class Interval:
 
     def hull(self, other: "Interval") -> "Interval":
         """Smallest box containing both (``other``: any set, by its interval hull)."""
-        other = other.interval()
+        other = self._same_dim(other, "hull")
         return Interval(np.minimum(self.lo, other.lo), np.maximum(self.hi, other.hi))
 
     def intersection(self, other: "Interval") -> "Interval":
         """Intersection with the interval hull of ``other`` (:class:`SetError` if empty)."""
-        other = other.interval()
+        other = self._same_dim(other, "intersection")
         return Interval(np.maximum(self.lo, other.lo), np.minimum(self.hi, other.hi))
 
     def scale(self, alpha: float) -> "Interval":
@@ -117,8 +131,16 @@ class Interval:
 
     def is_subset(self, other: "Interval", tol: float = 0.0) -> bool:
         """Is the box inside the interval hull of ``other`` (up to ``tol``)?"""
-        other = other.interval()
+        other = self._same_dim(other, "is_subset")
         return bool(np.all(self.lo >= other.lo - tol) and np.all(self.hi <= other.hi + tol))
+
+    def _same_dim(self, other, op: str) -> "Interval":
+        if not hasattr(other, "interval"):
+            raise SetError(f"{op}: other must be a set (Interval, Zonotope, ...), got {type(other).__name__}")
+        other = other.interval()
+        if other.dim != self.dim:
+            raise SetError(f"{op}: the sets have dimensions {self.dim} and {other.dim}")
+        return other
 
     def sample(self, n: int, rng=None) -> np.ndarray:
         """``n`` points of the box, shape (n, dim): a quarter corners, the rest uniform."""
@@ -129,7 +151,7 @@ class Interval:
 
     def project(self, dims) -> "Interval":
         """The box on the dimensions ``dims`` (indices)."""
-        dims = list(dims)
+        dims = _dims(dims, self.dim)
         return Interval(self.lo[dims], self.hi[dims])
 
     def __add__(self, other):
@@ -162,7 +184,12 @@ class Interval:
     @classmethod
     def from_list(cls, pairs) -> "Interval":
         """The box of ``[[lo_0, hi_0], ...]`` (the inverse of :meth:`to_list`)."""
-        arr = np.asarray(pairs, dtype=float).reshape(-1, 2)
+        try:
+            arr = np.asarray(pairs, dtype=float)
+        except (TypeError, ValueError):
+            raise SetError(f"from_list: expected [[lo, hi], ...] pairs of numbers, got {pairs!r}") from None
+        if arr.ndim != 2 or arr.shape[1] != 2:
+            raise SetError(f"from_list: expected [[lo, hi], ...] (shape (n, 2)), got shape {arr.shape}")
         return cls(arr[:, 0], arr[:, 1])
 
     def to_list(self):
@@ -363,14 +390,13 @@ class Zonotope:
     def bounds_along(self, direction):
         """``(min, max)`` of ``d^T x`` over the zonotope."""
         d = as_vector(direction, "direction")
+        if d.size != self.dim:  # the compiled loop reads d[i] for every dimension
+            raise SetError(f"direction has {d.size} entries, the zonotope {self.dim}")
         return tuple(float(v) for v in zk.bounds_along(*self._cg(), np.ascontiguousarray(d)))
 
     def project(self, dims) -> "Zonotope":
         """The zonotope on the dimensions ``dims`` (indices)."""
-        dims = [int(d) for d in dims]
-        for d in dims:
-            if not 0 <= d < self.dim:
-                raise SetError(f"dimension {d} out of range 0..{self.dim - 1}")
+        dims = _dims(dims, self.dim)
         return Zonotope(self.center[dims], self.generators[dims])
 
     def scale(self, alpha: float) -> "Zonotope":

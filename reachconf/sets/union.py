@@ -20,10 +20,27 @@ class SetUnion:
     """
 
     def __init__(self, pieces):
-        #: the zonotopes whose union is the set
-        self.pieces = tuple(pieces)
-        if not self.pieces:
+        from reachconf.sets.core import Zonotope
+
+        if pieces is None or isinstance(pieces, (str, bytes)):
+            raise SetError(f"SetUnion: pieces must be an iterable of zonotopes, got {pieces!r}")
+        try:
+            pieces = tuple(pieces)
+        except TypeError:
+            raise SetError(f"SetUnion: pieces must be an iterable of zonotopes, got {type(pieces).__name__}") from None
+        if not pieces:
             raise SetError("SetUnion needs at least one set")
+        conv = []
+        for i, piece in enumerate(pieces):
+            if isinstance(piece, Interval):
+                piece = piece.to_zonotope()
+            if not isinstance(piece, Zonotope):
+                raise SetError(f"SetUnion: piece {i} is a {type(piece).__name__}, not a Zonotope or Interval")
+            if conv and piece.dim != conv[0].dim:
+                raise SetError(f"SetUnion: piece {i} has dimension {piece.dim}, piece 0 {conv[0].dim}")
+            conv.append(piece)
+        #: the zonotopes whose union is the set
+        self.pieces = tuple(conv)
 
     @property
     def dim(self) -> int:
