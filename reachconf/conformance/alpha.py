@@ -23,9 +23,10 @@ def scaled_box(c, g, alpha) -> Interval:
 def alpha_search(check, W: Interval, iterations: int = 10, alpha_max: float = 1.0):
     """Binary search (eq. 68) for the smallest α with ``check(c + α g)`` true.
 
-    ``check(Interval) -> bool``; ``c, g`` are the centre and radius of ``W``.
-    α = 1 is tried first; if it fails, α is doubled up to ``alpha_max`` (see
-    :class:`~reachconf.conformance.synthesis.SynthesisOptions`).  The
+    ``check(Interval)`` returns a bool, a :class:`~reachconf.verdict.Verdict` or a result with a ``verdict``;
+    ``c, g`` are the centre and radius of ``W``.  α = 1 is tried first; if it is not conformant, α is
+    doubled up to ``alpha_max`` (see :class:`~reachconf.conformance.synthesis.SynthesisOptions`) — but not
+    after an *undecided* check (the reach failed: a larger box cannot make it succeed).  The
     bisection then runs between the largest failing and the smallest
     conformant α (``[0, 1]`` when α = 1 passes).  Returns ``(alpha, box,
     conformant, trials)``; if no α up to ``alpha_max`` passes, ``conformant``
@@ -35,22 +36,30 @@ def alpha_search(check, W: Interval, iterations: int = 10, alpha_max: float = 1.
     trials = []
     lo, hi = 0.0, 1.0
     while True:
-        ok = check(scaled_box(c, g, hi))
-        trials.append((hi, bool(ok)))
+        ok, undecided = _outcome(check(scaled_box(c, g, hi)))
+        trials.append((hi, ok))
         if ok:
             break
-        if hi >= alpha_max:
+        if hi >= alpha_max or undecided:
             return hi, scaled_box(c, g, hi), False, trials
         lo, hi = hi, min(2.0 * hi, alpha_max)
     for _ in range(iterations):
         mid = 0.5 * (lo + hi)
-        ok = check(scaled_box(c, g, mid))
-        trials.append((mid, bool(ok)))
+        ok, _ = _outcome(check(scaled_box(c, g, mid)))
+        trials.append((mid, ok))
         if ok:
             hi = mid
         else:
             lo = mid
     return hi, scaled_box(c, g, hi), True, trials
+
+
+def _outcome(result) -> tuple[bool, bool]:
+    """``(conformant, undecided)`` of a check's result (bool, Verdict, or an object with ``verdict``)."""
+    verdict = result if isinstance(result, Verdict) else getattr(result, "verdict", None)
+    if isinstance(verdict, Verdict):
+        return verdict is Verdict.CONFORMANT, verdict is Verdict.UNDECIDED
+    return bool(result), False
 
 
 def reachset_check(model, case, W, V, options):

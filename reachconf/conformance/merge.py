@@ -74,8 +74,9 @@ def merge_group(model, members, Vbox, options, pool, batch=1, stop=None, step=No
             failed.extend(Verdict(v) for _, v in bad)
             first = [order[i] for i, _ in bad]
             order[:] = first + [j for j in order if j not in first]
-            return False
-        return True
+            # a member whose reach failed fails again in a larger box: alpha_search stops doubling
+            return Verdict.UNDECIDED if Verdict.UNDECIDED in failed else Verdict.NOT_CONFORMANT
+        return Verdict.CONFORMANT
 
     iterations = options.merge_iterations or options.alpha_iterations
     alpha, W, ok, _ = alpha_search(check, hull, iterations, options.alpha_max)

@@ -280,14 +280,22 @@ class SynthesisResult(JsonResult):
         return axes
 
     def table(self, digits: int = 4) -> str:
-        """Table 6 style: one row per group, one ``[lo, hi]`` column per disturbance."""
+        """Table 6 style: one row per group, one ``[lo, hi]`` column per disturbance.
+
+        A group that is not conformant has no verified box: its cells are "—" (the last box tried is in
+        ``groups`` and the JSON).
+        """
         names = list(self.disturbance_names)
         head = "| group | " + " | ".join(names) + " | α | conformant |"
         rows = [head, "|" + "---|" * (len(names) + 3)]
         for g, W in self.groups.items():
-            cells = [f"[{lo:.{digits}g}, {hi:.{digits}g}]" for lo, hi in zip(W.lo, W.hi)]
-            label = self.group_verdict.get(g, Verdict.of(self.group_conformant[g])).label
-            rows.append(f"| {g} | " + " | ".join(cells) + f" | {self.group_alpha[g]:.4g} | {label} |")
+            verdict = self.group_verdict.get(g, Verdict.of(self.group_conformant[g]))
+            if verdict is Verdict.CONFORMANT:
+                cells = [f"[{lo:.{digits}g}, {hi:.{digits}g}]" for lo, hi in zip(W.lo, W.hi)]
+                alpha = f"{self.group_alpha[g]:.4g}"
+            else:
+                cells, alpha = ["—"] * len(names), "—"
+            rows.append(f"| {g} | " + " | ".join(cells) + f" | {alpha} | {verdict.label} |")
         return "\n".join(rows)
 
     def __str__(self):
@@ -323,7 +331,7 @@ def _synth_case(job) -> CaseSynthesis:
         if scale_of is not None and np.allclose(W.lo, scale_of.lo) and np.allclose(W.hi, scale_of.hi):
             at_one.setdefault("res", res)
         at_one["last"] = res
-        return res.conformant
+        return res.verdict
 
     alpha, W_RC, ok, trials = alpha_search(lambda W: check(W, W_opt), W_opt, options.alpha_iterations,
                                            options.alpha_max)  # fmt: skip
