@@ -44,12 +44,18 @@ __all__ = ["ReachOptions", "reach", "reach_run", "ReachRun", "ReachStopped"]
 # ---------------------------------------------------------------------------
 def sample_times(times) -> np.ndarray:
     """The sample times of ``times`` (a final time ``T``: ``[0, T]``), checked (:class:`ReachError` if bad)."""
-    arr = np.array(times, dtype=float)  # a writeable copy: the compiled kernels take no read-only arrays (TestCase.t is one)
+    if np.iscomplexobj(times):
+        raise ReachError(f"times must be real numbers, got {times!r}")
+    try:  # a writeable copy: the compiled kernels take no read-only arrays (TestCase.t is one)
+        arr = np.array(times, dtype=float)
+    except (TypeError, ValueError):
+        raise ReachError(f"times must be a final time or an array of sample times, got {times!r}") from None
     if arr.ndim == 0:
         if not (math.isfinite(float(arr)) and float(arr) > 0):
             raise ReachError(f"times: the final time must be a positive number, got {times!r}")
         return np.array([0.0, float(arr)])
-    arr = arr.reshape(-1)
+    if arr.ndim > 1:
+        raise ReachError(f"times must be a final time or a 1-D array of sample times, got shape {arr.shape}")
     if arr.size < 2:
         raise ReachError("times must hold at least two sample times (or be a final time)")
     if not np.all(np.isfinite(arr)):
@@ -318,7 +324,10 @@ def reach_run(model, X0, times, inputs=None, W=None, options=None, monitor=None,
     comp = model.compiled(order=3 if order == 3 else 2, remainder=options.remainder)
     S = dts.size
     gmax = int(n * max(options.zonotope_order, 1.0)) + n + 1
-    me = np.broadcast_to(np.asarray(options.max_error, dtype=float), (n,)).copy()
+    me = np.atleast_1d(np.asarray(options.max_error, dtype=float))
+    if me.size not in (1, n):
+        raise OptionsError(f"ReachOptions.max_error has {me.size} entries, model {model.name!r} has {n} states")
+    me = np.broadcast_to(me, (n,)).copy()
     params = model.param_vector
     algorithm = options.alg.kernel_code
     reduce_method = options.reduction_method.kernel_code

@@ -359,6 +359,8 @@ class ReachOptions:
         if not (isinstance(self.max_error_iterations, (int, np.integer)) and self.max_error_iterations >= 2):
             raise OptionsError("ReachOptions.max_error_iterations must be an integer >= 2")
         me = np.atleast_1d(np.asarray(self.max_error, dtype=float))
+        if me.ndim != 1:
+            raise OptionsError(f"ReachOptions.max_error must be a number or one per state, got shape {me.shape}")
         if np.any(np.isnan(me)) or np.any(me <= 0):
             raise OptionsError("ReachOptions.max_error must be positive (inf allowed)")
         if not (0 <= self.rounding < 1e-6):

@@ -246,12 +246,23 @@ def diagnose_settings(spec: RunSpec, cases=None) -> dict:
         name = e[0] if isinstance(e, tuple) else e
         if name != "all" and name not in EFFECTS:
             raise DataError(f"{where}: unknown effect {name!r}; known: {sorted(EFFECTS)}")
+    try:  # each effect on its targets (e.g. a lag on an input the model does not have): named with the file
+        from reachconf.diagnose.pipeline import _resolve_effects
+
+        _resolve_effects(spec.model, effects)
+    except ReachconfError as exc:
+        raise DataError(f"{where}: {exc}") from None
     kwargs["effects"] = effects
-    for key, typ in (("holdout", (int, float)), ("seed", int)):
-        if key in table:
-            if not isinstance(table[key], typ) or isinstance(table[key], bool):
-                raise DataError(f"{where}: {key} must be a number, got {table[key]!r}")
-            kwargs[key] = table.pop(key)
+    if "holdout" in table:
+        h = table.pop("holdout")
+        if not _is_number(h) or not 0 < h < 1:
+            raise DataError(f"{where}: holdout must be a number in (0, 1), got {h!r}")
+        kwargs["holdout"] = h
+    if "seed" in table:
+        s = table.pop("seed")
+        if not isinstance(s, int) or isinstance(s, bool) or s < 0:
+            raise DataError(f"{where}: seed must be a non-negative integer, got {s!r}")
+        kwargs["seed"] = s
     if "fit_params" in table:
         fp = table.pop("fit_params")
         if not (isinstance(fp, bool) or (isinstance(fp, list) and all(isinstance(x, str) for x in fp))):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -407,7 +408,7 @@ class ReachTube:
             meta = json.loads(str(data["meta"]))
             extra = {k: data[k] for k in ("step_bounds", "all_times") if k in data.files}
             log = ReachLog.from_arrays(data)
-        except (KeyError, ValueError, OSError) as exc:
+        except (KeyError, ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
             raise DataError(f"{path}: not a reachconf tube file ({exc})") from None
         return cls(data["times"], sets["tp"], data["time_intervals"], sets["ti"],
                    [str(s) for s in data["state_names"]], splits=meta.pop("splits", 0),

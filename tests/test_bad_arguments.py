@@ -55,3 +55,68 @@ def test_set_methods_check_dimensions_and_indices():
     d = np.arange(5.0)
     assert Z5.bounds_along(d) == (-Z5.support(-d), Z5.support(d)) == Z5.bounds_along(d)
     assert I2.project(np.array([1])) == rc.Interval([0], [1])
+
+
+def test_reach_and_simulate_arguments():
+    with pytest.raises(rc.ReachError, match="1-D array of sample times"):
+        rc.reach(vanderpol(), X0, [[0, 0.1, 0.2], [0.3, 0.4, 0.5]])
+    with pytest.raises(rc.ReachError, match="array of sample times, got 'abc'"):
+        rc.reach(vanderpol(), X0, "abc")
+    with pytest.raises(rc.OptionsError, match="max_error has 3 entries, model 'vanderpol' has 2 states"):
+        rc.reach(vanderpol(), X0, 0.1, options=rc.ReachOptions(algorithm="lin", max_error=[0.1, 0.1, 0.1]))
+    with pytest.raises(rc.OptionsError, match="max_error must be a number or one per state"):
+        rc.ReachOptions(max_error=[[0.1, 0.1]])
+    with pytest.raises(rc.DataError, match="substeps must be a positive integer"):
+        rc.simulate(vanderpol(), [1.0, 2.0], [0.0, 1.0], substeps=0)
+
+
+def test_test_cases_and_suites():
+    t = np.linspace(0.0, 1.0, 11)
+    sig = (t, np.zeros((11, 1)), np.zeros((11, 1)))
+    ok = rc.TestCase("c", "g", *sig, ("u",), ("y",))
+    for name in ("../escaped", "a/b", "", None, ".."):
+        with pytest.raises(rc.DataError, match="test case name must be a non-empty string"):
+            rc.TestCase(name, "g", *sig, ("u",), ("y",))
+    with pytest.raises(rc.DataError, match="input_names must be a sequence of names"):
+        rc.TestCase("c", "g", *sig, "u", ("y",))
+    with pytest.raises(rc.DataError, match="got a single TestCase"):
+        rc.TestSuite(ok)
+    with pytest.raises(rc.DataError, match="item 0 is a int"):
+        rc.TestSuite([1, 2])
+    suite = rc.TestSuite([ok])
+    with pytest.raises(rc.DataError, match="has no case 'zz'; cases: \\['c'\\]"):
+        suite["zz"]
+    with pytest.raises(KeyError):  # still a KeyError for dict-like code
+        suite["zz"]
+    assert suite["c"] is ok
+
+
+def test_diagnosis_and_bounds_arguments():
+    spec = load_run(demo_run_file())
+    suite = spec.suite()
+    with pytest.raises(rc.ModelError, match="diagnose: model must be a reachconf Model"):
+        rc.diagnose("bicycle_closed_loop", suite)
+    with pytest.raises(rc.DataError, match="diagnose: suite must be a TestSuite"):
+        rc.diagnose(spec.model, None)
+    with pytest.raises(rc.OptionsError, match="seed must be a non-negative integer"):
+        rc.diagnose(spec.model, suite, seed=-1)
+    with pytest.raises(rc.OptionsError, match="options must be a DiagnoseOptions"):
+        rc.diagnose(spec.model, suite, options={})
+    with pytest.raises(rc.OptionsError, match="locate_gap: envelope out of range"):
+        rc.locate_gap(spec.model, suite, spec.V, envelope=float("nan"))
+    with pytest.raises(rc.OptionsError, match="locate_gap: group_share out of range"):
+        rc.locate_gap(spec.model, suite, spec.V, group_share=2.0)
+    with pytest.raises(rc.OptionsError, match="case_box: solve_for must be 'W' or 'V'"):
+        rc.case_box(spec.model, suite[0], spec.V, solve_for="foo")
+    with pytest.raises(rc.OptionsError, match="case_box: method must be one of"):
+        rc.case_box(spec.model, suite[0], spec.V, method="foo")
+    with pytest.raises(rc.OptionsError, match="options must be a TraceOptions"):
+        rc.case_box(spec.model, suite[0], spec.V, options={})
+
+
+def test_a_truncated_tube_file_is_a_data_error(tmp_path):
+    (tmp_path / "empty.npz").write_bytes(b"")
+    (tmp_path / "cut.npz").write_bytes(b"PK\x03\x04garbage")
+    for name in ("empty.npz", "cut.npz"):
+        with pytest.raises(rc.DataError):
+            rc.ReachTube.load(tmp_path / name)

@@ -30,8 +30,10 @@ from reachconf.conformance.trace import (
     trace_disturbances,
 )
 from reachconf.conformance.windows import describe_violation
+from reachconf.checks import check_options
 from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.cases import case_arrays
+from reachconf.model.core import require_model
 from reachconf.runner import run_cases
 from reachconf.sets.convert import as_box
 from reachconf.sets.core import Interval
@@ -160,7 +162,14 @@ def case_box(model, case, V=None, method: str = "auto", solve_for: str = "W",
         If no trace within V is found: the message says where the best trace
         leaves V (case, output, time, by how much).
     """
-    options = options or TraceOptions()
+    require_model(model, "case_box")
+    options = check_options(options, TraceOptions, "case_box")
+    if solve_for not in ("W", "V"):
+        raise OptionsError(f"case_box: solve_for must be 'W' or 'V', got {solve_for!r}")
+    if method not in _METHODS:
+        raise OptionsError(f"case_box: method must be one of {_METHODS}, got {method!r}")
+    if solve_for == "W" and V is None:
+        raise OptionsError("case_box(solve_for='W') needs the measurement-error set V")
     name = getattr(case, "name", "case")
     t, U, Y = case_arrays(model, case)
     secs = {}
@@ -260,7 +269,8 @@ def minimal_trace_bounds(model, suite, V=None, method: str = "auto", solve_for: 
         If a case has no trace within V: the message names the case, the
         output, the time and by how much V is exceeded.
     """
-    options = options or TraceOptions()
+    require_model(model, "minimal_trace_bounds")
+    options = check_options(options, TraceOptions, "minimal_trace_bounds")
     cases = list(suite)
     if not cases:
         raise ConformanceError("the suite has no test cases")

@@ -27,9 +27,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from reachconf.conformance.trace import TraceOptions, trace_disturbances
-from reachconf.errors import ConformanceError
+from reachconf.checks import check_options
+from reachconf.errors import ConformanceError, DataError, OptionsError
 from reachconf.io.results import JsonResult
-from reachconf.io.cases import case_arrays
+from reachconf.io.cases import TestCase, TestSuite, case_arrays
+from reachconf.model.core import require_model
 from reachconf.model.outputs import evaluate_outputs
 from reachconf_kernels.integrate import rk4_one_step_each
 
@@ -147,7 +149,14 @@ def locate_gap(model, suite, V=None, envelope: float = 4.0, min_duration: float 
         An excursion is reported for a group when at least this share of its
         cases is outside the envelope at the same time (cases aligned at t = 0).
     """
-    options = options or TraceOptions()
+    require_model(model, "locate_gap")
+    options = check_options(options, TraceOptions, "locate_gap")
+    for name, value, ok in (("envelope", envelope, lambda v: v > 0), ("min_duration", min_duration, lambda v: v >= 0),
+                            ("group_share", group_share, lambda v: 0 < v <= 1)):  # fmt: skip
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or not ok(value):
+            raise OptionsError(f"locate_gap: {name} out of range, got {value!r}")
+    if not isinstance(suite, (TestSuite, list, tuple)) or not all(isinstance(c, TestCase) for c in suite):
+        raise DataError(f"locate_gap: suite must be a TestSuite or a list of TestCase, got {type(suite).__name__}")
     cases = list(suite)
     if not cases:
         raise ConformanceError("the suite has no test cases")

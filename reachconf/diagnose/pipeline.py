@@ -76,8 +76,10 @@ from reachconf.diagnose.verdict import (
     model_entry,
     verdict_text,
 )
-from reachconf.errors import ConformanceError, OptionsError
-from reachconf.io.cases import TestSuite
+from reachconf.checks import check_options
+from reachconf.errors import ConformanceError, DataError, OptionsError
+from reachconf.io.cases import TestCase, TestSuite
+from reachconf.model.core import require_model
 from reachconf.sets.core import Interval
 
 __all__ = ["diagnose"]
@@ -168,11 +170,14 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     GapReport
     """
     t_start, c_start = time.perf_counter(), time.process_time()
-    options = options or DiagnoseOptions()
-    if not isinstance(options, DiagnoseOptions):
-        raise OptionsError(f"options must be a DiagnoseOptions, got {type(options).__name__}")
-    if not (isinstance(holdout, (int, float)) and 0 < holdout < 1):
+    require_model(model, "diagnose")
+    options = check_options(options, DiagnoseOptions, "diagnose")
+    if not (isinstance(holdout, (int, float)) and not isinstance(holdout, bool) and 0 < holdout < 1):
         raise OptionsError(f"holdout must be in (0, 1), got {holdout!r}")
+    if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
+        raise OptionsError(f"diagnose: seed must be a non-negative integer, got {seed!r}")
+    if not isinstance(suite, (TestSuite, list, tuple)) or not all(isinstance(c, TestCase) for c in suite):
+        raise DataError(f"diagnose: suite must be a TestSuite or a list of TestCase, got {type(suite).__name__}")
     cases = list(suite)
     if len(cases) < 2:
         raise ConformanceError(f"diagnose needs at least two test cases (training and held-out), got {len(cases)}")

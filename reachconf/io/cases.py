@@ -110,6 +110,16 @@ class TestCase:
     extras: dict = field(default_factory=dict)
 
     def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name or any(ch in self.name for ch in '/\\\0') \
+                or self.name in (".", ".."):  # fmt: skip
+            raise DataError(f"test case name must be a non-empty string without '/', '\\' or NUL (it names the "
+                            f"case's file), got {self.name!r}")  # fmt: skip
+        if not isinstance(self.group, str):
+            raise DataError(f"test case {self.name!r}: group must be a string, got {self.group!r}")
+        for label, names in (("input_names", self.input_names), ("output_names", self.output_names)):
+            if isinstance(names, str) or not all(isinstance(n, str) for n in names):
+                raise DataError(f"test case {self.name!r}: {label} must be a sequence of names (strings), "
+                                f"got {names!r}")  # fmt: skip
         inputs, outputs = tuple(self.input_names), tuple(self.output_names)
         where = f"test case {self.name!r}"
         t, U, Y = check_signals(where, self.t, self.U, self.Y, inputs, outputs)
@@ -275,16 +285,32 @@ class TestCase:
                 f"t=[{self.t[0]:g}, {self.t[-1]:g}], inputs={self.input_names}, outputs={self.output_names})")  # fmt: skip
 
 
+class CaseNotFound(DataError, KeyError):
+    """``suite["name"]`` of a case the suite does not hold (a :class:`DataError` and a ``KeyError``)."""
+
+    def __str__(self):  # KeyError would print the message in quotes
+        return str(self.args[0]) if self.args else ""
+
+
 class TestSuite:
     """An ordered collection of :class:`TestCase` (iterable, indexable by position or name)."""
 
     __test__ = False
 
     def __init__(self, cases, name: str = "suite"):
-        self.cases = list(cases)
+        if isinstance(cases, TestCase):
+            raise DataError(f"test suite {name!r}: cases must be a list of TestCase, got a single TestCase "
+                            f"(write TestSuite([case]))")  # fmt: skip
+        try:
+            self.cases = list(cases)
+        except TypeError:
+            raise DataError(f"test suite {name!r}: cases must be a list of TestCase, got {type(cases).__name__}") from None
         self.name = name
         if not self.cases:
             raise DataError(f"test suite {name!r} is empty")
+        for i, c in enumerate(self.cases):
+            if not isinstance(c, TestCase):
+                raise DataError(f"test suite {name!r}: cases must be TestCase objects, item {i} is a {type(c).__name__}")
         names = [c.name for c in self.cases]
         dup = {n for n in names if names.count(n) > 1}
         if dup:
@@ -301,7 +327,7 @@ class TestSuite:
             for c in self.cases:
                 if c.name == key:
                     return c
-            raise KeyError(key)
+            raise CaseNotFound(f"test suite {self.name!r} has no case {key!r}; cases: {[c.name for c in self.cases]}")
         return self.cases[key]
 
     def groups(self) -> dict:

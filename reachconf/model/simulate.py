@@ -83,6 +83,8 @@ def simulate(model, x0, times, inputs=None, disturbances=None, substeps: int = 1
         On bad times, shapes or non-finite values (with ``check``).
     """
     if check:
+        if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
+            raise DataError(f"substeps must be a positive integer (RK4 steps per sample interval), got {substeps!r}")
         x0, times, U, Wt = _prepare(model, x0, times, inputs, disturbances)
     else:
         U, Wt = inputs, disturbances
