@@ -198,9 +198,10 @@ def markdown(result) -> str:
     for g, box_ in result["table6"].items():
         runs = [c for c in result["table6_cases"].values() if c["group"] == g]
         ok = sum(c["conformant"] for c in runs)
-        cells = [f"[{a:.3g}, {b:.3g}]" for a, b in box_]
-        lines.append(f"| {g} | " + " | ".join(cells) + f" | {result['table6_alpha'][g]:.3g} | "
-                     f"{result['table6_conformant'][g]} | {ok}/{len(runs)} |")  # fmt: skip
+        conformant = result["table6_conformant"][g]
+        cells = [f"[{a:.3g}, {b:.3g}]" for a, b in box_] if conformant else ["—"] * len(names)  # no verified box
+        alpha = f"{result['table6_alpha'][g]:.3g}" if conformant else "—"
+        lines.append(f"| {g} | " + " | ".join(cells) + f" | {alpha} | {conformant} | {ok}/{len(runs)} |")
     lines.append("")
     for label, tab in result["table8"].items():
         lines += [f"## Table 8 analogue ({label}): f_B against the plant without actuator effects and noise", "",
