@@ -199,7 +199,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     folds = fold_assignment([d.group for d in prepared], k_folds, seed)
     clusters = window_clusters(window_counts(prepared), options.min_clusters)
     dt = float(np.median(np.diff(prepared[0].t)))
-    k = max(int(round(1.0 / (options.box_rate * dt))), 1)
+    k = 1 if options.box_rate is None else max(int(round(1.0 / (options.box_rate * dt))), 1)
     cache = {}
     n_pairs = options.pair_top * (options.pair_top - 1) // 2
     bar = tqdm(total=3 + min(options.screen, len(candidates)) + n_pairs, desc="diagnose", disable=not progress,
