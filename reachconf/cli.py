@@ -386,33 +386,16 @@ def _one_line(exc) -> str:
     return "reachconf: error: " + " ".join(text.split())
 
 
-def _run_inputs(args):
-    """The run file and the suite folders it names (``suite``, ``[diagnose] reference``): what no output may
-    overwrite.  Read leniently: a run file that does not parse is reported by the command itself."""
-    import tomllib
-
-    run = getattr(args, "run", None)
-    if not run:
-        return [], []
-    path = Path(run)
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8-sig"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
-        return [path], []
-    diag = raw.get("diagnose") if isinstance(raw.get("diagnose"), dict) else {}
-    folders = [path.parent / v for v in (raw.get("suite"), diag.get("reference")) if isinstance(v, str) and v]
-    return [path], folders
-
-
 def _outputs(args):
     from reachconf.io.output import RunOutputs, check_not_input, check_output_folder
+    from reachconf.runfile import input_paths
 
     if args.command == "plot":  # one picture next to the result or in --out: checked, not locked
         if args.out is not None:
             check_output_folder(args.out)
         return RunOutputs("plot", folder=args.out)
     folder = args.out if args.out is not None or args.command != "demo" else "demo"
-    files, folders = _run_inputs(args)
+    files, folders = input_paths(args.run) if getattr(args, "run", None) else ([], [])
     if folder is not None:
         check_not_input(folder, "--out", files, folders)
     if args.json is not None:

@@ -45,7 +45,7 @@ from reachconf.models import get_model
 from reachconf.reach_options import ReachOptions
 from reachconf.sets.core import Interval
 
-__all__ = ["RunSpec", "load_run", "resolve_model", "diagnose_settings", "select_cases"]
+__all__ = ["RunSpec", "load_run", "resolve_model", "diagnose_settings", "select_cases", "input_paths"]
 
 _KEYS = {"model", "suite", "params", "sets", "reach", "trace", "synthesis", "description", "workers", "diagnose"}
 
@@ -199,16 +199,31 @@ def load_run(path) -> RunSpec:
         raise DataError(f"{path}: trace.method must be one of {METHODS}, got {method!r}")
     trace_opts = _options(TraceOptions, trace_tab, f"{path}: [trace]", drop=("method",))
     synth_tab = _table(raw, "synthesis", str(path))
-    if {"reach", "trace"} & set(synth_tab):
-        raise DataError(f"{path}: [synthesis] cannot hold 'reach'/'trace': use the [reach] and [trace] tables")
+    if {"reach", "trace", "X0"} & set(synth_tab):
+        raise DataError(f"{path}: [synthesis] cannot hold 'reach'/'trace'/'X0': use the [reach] and [trace] tables "
+                        f"and [sets] X0")  # fmt: skip
     synth_opts = _options(SynthesisOptions, synth_tab, f"{path}: [synthesis]")
-    synth_opts = dataclasses.replace(synth_opts, reach=reach_opts, trace=trace_opts)
+    synth_opts = dataclasses.replace(synth_opts, reach=reach_opts, trace=trace_opts, X0=X0)
     try:
         workers = check_workers(raw.get("workers"))
     except ReachconfError as exc:
         raise DataError(f"{path}: {exc}") from None
     _table(raw, "diagnose", str(path))
     return RunSpec(path, model, suite_path, W, V, X0, reach_opts, method, trace_opts, synth_opts, workers, raw)
+
+
+def input_paths(path) -> tuple[list, list]:
+    """``(files, folders)`` a run reads: the run file, and the suite folders it names (``suite``,
+    ``[diagnose] reference``) — what no output may overwrite.  Read leniently: a run file that does not
+    parse gives just itself (:func:`load_run` reports the problem)."""
+    path = Path(path)
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8-sig"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return [path], []
+    diag = raw.get("diagnose") if isinstance(raw.get("diagnose"), dict) else {}
+    folders = [path.parent / v for v in (raw.get("suite"), diag.get("reference")) if isinstance(v, str) and v]
+    return [path], folders
 
 
 def select_cases(suite, names, path):
@@ -247,9 +262,9 @@ def diagnose_settings(spec: RunSpec, cases=None) -> dict:
         if name != "all" and name not in EFFECTS:
             raise DataError(f"{where}: unknown effect {name!r}; known: {sorted(EFFECTS)}")
     try:  # each effect on its targets (e.g. a lag on an input the model does not have): named with the file
-        from reachconf.diagnose.pipeline import _resolve_effects
+        from reachconf.diagnose.pipeline import resolve_effects
 
-        _resolve_effects(spec.model, effects)
+        resolve_effects(spec.model, effects)
     except ReachconfError as exc:
         raise DataError(f"{where}: {exc}") from None
     kwargs["effects"] = effects

@@ -79,9 +79,9 @@ def reachset_check(model, case, W, V, options):
     -------
     ReachsetResult
     """
-    res = reachset_conformance(model, case, W, V, options=options.reach, keep_tube=False,
+    res = reachset_conformance(model, case, W, V, X0=options.X0, options=options.reach, keep_tube=False,
                                violation_distance=False, stop_at_first_violation=True)  # fmt: skip
     if res.verdict is Verdict.UNDECIDED and options.reach_fallback is not None:  # the reach failed: the precise one
-        res = reachset_conformance(model, case, W, V, options=options.reach_fallback, keep_tube=False,
+        res = reachset_conformance(model, case, W, V, X0=options.X0, options=options.reach_fallback, keep_tube=False,
                                    violation_distance=False, stop_at_first_violation=True)  # fmt: skip
     return res

@@ -34,6 +34,7 @@ from reachconf.checks import check_options
 from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.cases import case_arrays
 from reachconf.model.core import require_model
+from reachconf.model.outputs import state_estimate
 from reachconf.runner import run_cases
 from reachconf.sets.convert import as_box
 from reachconf.sets.core import Interval
@@ -410,6 +411,15 @@ def box_scp(model, t, U, Y, V_lo, V_hi, x0, W, options, objective="sum", W_fixed
     return np.zeros(0), np.zeros(0), x0, W
 
 
+def states_readable(model, case) -> bool:
+    """Can the states be read from the case's outputs (what the per-step fit needs)?"""
+    try:
+        state_estimate(model, case)
+    except ConformanceError:
+        return False
+    return True
+
+
 def step1_trace(model, case, V, method, options):
     """Step 1's disturbance trace by ``method`` ("auto": per-step where it stays within V, else Alg. 2).
 
@@ -417,6 +427,9 @@ def step1_trace(model, case, V, method, options):
     """
     if method == "optctrl":
         return trace_disturbances(model, case, method="optctrl", V=V, options=options), "step1_method='optctrl'"
+    if method == "auto" and not states_readable(model, case):
+        res = trace_disturbances(model, case, method="optctrl", V=V, options=options)
+        return res, "the states cannot be read from the outputs: Alg. 2"
     res = trace_disturbances(model, case, method="perstep", V=V, options=options)
     if method == "perstep":
         return res, "step1_method='perstep'"

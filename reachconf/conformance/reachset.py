@@ -172,7 +172,8 @@ def initial_set(model, case, V) -> Interval | Zonotope:
         Vc, Vr = 0.5 * (V_lo + V_hi), 0.5 * (V_hi - V_lo)
         return Zonotope(x1 - Cp @ Vc, -Cp * Vr)
     raise ConformanceError(
-        f"model {model.name!r}: eq. 67 needs the states from the outputs (h not invertible); pass X0 explicitly"
+        f"model {model.name!r}: eq. 67 needs the states from the outputs (h not invertible); give the initial set "
+        f"X0 (reachset_conformance(X0=...), SynthesisOptions(X0=...), or [sets] X0 in a run file)"
     )
 
 

@@ -33,7 +33,7 @@ from reachconf.model.shipping import prepare_model
 from reachconf.reach_options import ReachOptions
 from reachconf.runner.pool import Interrupted, WorkersLost, use_pool
 from reachconf.sets.convert import as_box
-from reachconf.sets.core import Interval
+from reachconf.sets.core import Interval, Zonotope
 from reachconf.verdict import Verdict, overall_verdict
 
 __all__ = ["SynthesisOptions", "CaseSynthesis", "SynthesisResult", "synthesize_W", "alpha_search",
@@ -83,6 +83,13 @@ class SynthesisOptions:
         W unbounded), or "auto": the per-step trace where it stays within V,
         else Alg. 2's (noisy measurements at a high rate make the per-step
         trace drift out of V; step 2 then starts from a trace within V).
+        A model whose states cannot be read from its outputs goes to Alg. 2 at once.
+    X0 : Interval, Zonotope or None
+        Initial set of every case's reach in the α-searches (step 3, the
+        merge, the Pareto checks); None: eq. 67, the states read from each
+        case's first measurement and V — which needs outputs from which the
+        states can be read: give X0 for a model with an unmeasured state
+        (``[sets] X0`` of a run file).
     """
 
     alpha_iterations: int = 10
@@ -95,9 +102,12 @@ class SynthesisOptions:
     reach_fallback: object = None
     trace: TraceOptions | None = None
     step1_method: str = "auto"
+    X0: object = None
 
     def __post_init__(self):
         check_field_types(self)
+        if self.X0 is not None and not isinstance(self.X0, (Interval, Zonotope)):
+            raise OptionsError(f"X0 must be an Interval, a Zonotope or None, got {type(self.X0).__name__}")
         if self.step1_method not in ("auto", "perstep", "optctrl"):
             raise OptionsError(f"step1_method must be 'auto', 'perstep' or 'optctrl', got {self.step1_method!r}")
         if int(self.alpha_iterations) != self.alpha_iterations or self.alpha_iterations < 1:

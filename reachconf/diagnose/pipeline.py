@@ -80,12 +80,20 @@ from reachconf.checks import check_options
 from reachconf.errors import ConformanceError, DataError, OptionsError
 from reachconf.io.cases import TestCase, TestSuite
 from reachconf.model.core import require_model
+from reachconf.model.outputs import state_estimate
 from reachconf.sets.core import Interval
 
-__all__ = ["diagnose"]
+__all__ = ["diagnose", "resolve_effects"]
 
 
-def _resolve_effects(model, effects):
+def resolve_effects(model, effects):
+    """The candidate (effect, target) pairs of ``effects`` ("all", names, or (name, target) pairs) on ``model``.
+
+    Raises
+    ------
+    OptionsError
+        An unknown effect, or a target the effect cannot act on in this model.
+    """
     if isinstance(effects, str) and effects == "all":
         chosen = list(EFFECTS.values())
     else:
@@ -183,8 +191,15 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         raise ConformanceError(f"diagnose needs at least two test cases (training and held-out), got {len(cases)}")
     if model.q == 0:
         raise ConformanceError(f"model {model.name!r} has no disturbances: there is no gap box to diagnose")
+    try:
+        state_estimate(model, cases[0])
+    except ConformanceError:
+        raise ConformanceError(
+            f"diagnose: model {model.name!r} has outputs {model.output_names} for states {model.state_names}: every "
+            f"prediction window starts from the measured state, so each state must be an output or computable from "
+            f"the outputs (measure the missing state, or write the model without it)") from None
     fit_names = _fit_names(model, fit_params)
-    candidates = _resolve_effects(model, effects)
+    candidates = resolve_effects(model, effects)
     if not candidates:
         raise OptionsError("effects: no candidate effect applies to this model")
 
