@@ -304,11 +304,12 @@ def cmd_diagnose(args, run):
     from reachconf.diagnose.pipeline import diagnose
     from reachconf.io.atomic import atomic_write
     from reachconf.runfile import diagnose_settings
+    from reachconf.runner.pool import progress_shown
 
     spec = _load(args)
     suite = _select_cases(spec, args)
     kwargs = diagnose_settings(spec, cases=getattr(args, "case", None))
-    report = diagnose(spec.model, suite, V=spec.V, **kwargs)
+    report = diagnose(spec.model, suite, V=spec.V, progress=progress_shown(), **kwargs)  # no bar in a log file
     if args.json:
         report.to_json(args.json)
     out = run.outputs.folder
@@ -396,10 +397,9 @@ def _outputs(args):
         return RunOutputs("plot", folder=args.out)
     folder = args.out if args.out is not None or args.command != "demo" else "demo"
     files, folders = input_paths(args.run) if getattr(args, "run", None) else ([], [])
-    if folder is not None:
-        check_not_input(folder, "--out", files, folders)
-    if args.json is not None:
-        check_not_input(args.json, "--json", files, folders)
+    for path, option in ((folder, "--out"), (args.json, "--json")):
+        if path is not None:
+            check_not_input(path, option, files, folders)
     return RunOutputs(args.command, folder=folder, json=args.json).open()
 
 

@@ -59,7 +59,7 @@ def run_cases(fn, jobs, workers=None, scheduler=None, desc="cases", progress=Non
         The older name of ``pool``.
     progress : bool, optional
         Show a progress bar (default: when there is more than one job and
-        ``REACHCONF_PROGRESS`` is not ``0``).
+        stderr is a terminal; ``REACHCONF_PROGRESS=1`` always, ``0`` never).
 
     Raises
     ------

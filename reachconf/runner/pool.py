@@ -63,10 +63,16 @@ def worker_timeout_default() -> float:
     return value
 
 
+def progress_shown() -> bool:
+    """Draw progress bars by default?  When stderr is a terminal; ``REACHCONF_PROGRESS=1`` also when it is not
+    (a log file), ``0`` never."""
+    env = os.environ.get("REACHCONF_PROGRESS", "")
+    return env == "1" or (env != "0" and sys.stderr is not None and sys.stderr.isatty())
+
+
 def progress_bar(total, desc, progress=None, unit="case"):
-    """A tqdm bar on stderr; ``progress=None``: shown when ``total > 1`` and ``REACHCONF_PROGRESS`` is not 0."""
-    disable = (os.environ.get("REACHCONF_PROGRESS", "1") == "0" or (total is not None and total <= 1)
-               if progress is None else not progress)  # fmt: skip
+    """A tqdm bar on stderr; ``progress=None``: shown when ``total > 1`` and :func:`progress_shown`."""
+    disable = not progress_shown() or (total is not None and total <= 1) if progress is None else not progress
     return tqdm(total=total, desc=desc, unit=unit, disable=disable, leave=False, file=sys.stderr)
 
 

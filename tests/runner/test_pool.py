@@ -128,3 +128,20 @@ def test_a_script_without_main_guard_can_use_workers(tmp_path):
     out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, env=env)
     assert out.returncode == 0, out.stderr
     assert out.stdout.count("result [1, 2, 3]") == 1  # the workers did not run the script
+
+
+def test_progress_bars_only_on_a_terminal_by_default(monkeypatch):
+    """Bars are for a person watching: not in a log file (every \\r frame ended up there), unless asked for."""
+    import io
+    import sys
+
+    from reachconf.runner.pool import progress_bar, progress_shown
+
+    monkeypatch.setattr(sys, "stderr", io.StringIO())  # not a terminal
+    monkeypatch.delenv("REACHCONF_PROGRESS", raising=False)
+    assert not progress_shown() and progress_bar(10, "x").disable
+    monkeypatch.setenv("REACHCONF_PROGRESS", "1")
+    assert progress_shown() and not progress_bar(10, "x").disable
+    assert progress_bar(1, "x").disable  # a single job: no bar
+    monkeypatch.setenv("REACHCONF_PROGRESS", "0")
+    assert not progress_shown() and not progress_bar(10, "x", progress=True).disable
