@@ -61,6 +61,8 @@ def cmd_pareto(args, run, load, select_cases, savefig):
     with Pool(workers, scheduler, preload=PRELOAD) as pool:
         print(f"workers: {pool.describe()}", flush=True)
         start = spec.W
+        if start is not None:
+            print("start: the run file's [sets] W (every box keeps its centre; without W: the synthesis's boxes)")
         if start is None:
             synth = synthesize_W(spec.model, suite, spec.V, spec.synthesis_options, pool=pool)
             synth.save(out / "synthesis.json")

@@ -122,7 +122,10 @@ def pareto_front(model, suite, V, W_start, check: str = "reachset", iterations: 
     Parameters
     ----------
     W_start : Interval
-        A box conformant for every case (e.g. ``SynthesisResult.groups[g]``).
+        A box conformant for every case (e.g. ``SynthesisResult.groups[g]``).  Each channel's
+        half-width is bisected about its centre, which every box of the front keeps: start from a
+        synthesized box for a front near the minimal boxes (``reachconf pareto`` does when the run file
+        has no ``[sets] W``); a wide box centred elsewhere gives boxes the synthesis's dominate.
     check : {"reachset", "trace"}
         Conformance notion (eq. 43 with eq. 67, or Alg. 1 with Alg. 2).
     iterations : int
@@ -209,7 +212,8 @@ def _front(model, cases, Vbox, W_start, check, iterations, orders, options, pool
 
     try:
         if not ok(W_start):
-            raise ConformanceError(f"W_start is not {check} conformant for every case; start from a conformant box")
+            raise ConformanceError(f"W_start {W_start} is not {check} conformant for every case; start from a "
+                                   f"conformant box (a synthesized one: reachconf pareto without [sets] W)")  # fmt: skip
         boxes = pool.each(search, orders)
     finally:
         bar.close()
