@@ -120,3 +120,13 @@ def test_a_truncated_tube_file_is_a_data_error(tmp_path):
     for name in ("empty.npz", "cut.npz"):
         with pytest.raises(rc.DataError):
             rc.ReachTube.load(tmp_path / name)
+
+
+def test_model_names_that_cannot_be_used_are_refused():
+    dyn = lambda s: [-s.x]  # noqa: E731
+    with pytest.raises(rc.ModelError, match="starts with '_', which is reserved"):
+        rc.Model(name="m", states=("_symbols",), dynamics=lambda s: [0])
+    with pytest.raises(rc.ModelError, match="params must be a mapping"):
+        rc.Model(name="m", states=("x",), params=["k"], dynamics=dyn)
+    with pytest.raises(rc.ModelError, match=r"outputs \['u'\] have the name of an input"):
+        rc.Model(name="m", states=("x",), inputs=("u",), outputs={"u": "x"}, dynamics=dyn)

@@ -105,6 +105,8 @@ def _names(value, what: str) -> tuple[str, ...]:
     for name in names:
         if not isinstance(name, str) or not name.isidentifier() or keyword.iskeyword(name):
             raise ModelError(f"{what}: {name!r} is not a valid signal name (use a Python identifier)")
+        if name.startswith("_"):
+            raise ModelError(f"{what}: {name!r} starts with '_', which is reserved (use a name without it)")
     if len(set(names)) != len(names):
         dup = sorted({n for n in names if names.count(n) > 1})
         raise ModelError(f"{what}: duplicate names {dup}")
@@ -175,7 +177,11 @@ class Model:
         self.disturbance_names = _names(
             disturbances if disturbances is not None else cls.disturbances, "disturbances"
         )
-        param_values = dict(params if params is not None else cls.params)
+        raw_params = params if params is not None else cls.params
+        if not isinstance(raw_params, Mapping):
+            raise ModelError(f"model {self.name!r}: params must be a mapping name -> value, got "
+                             f"{type(raw_params).__name__}")  # fmt: skip
+        param_values = dict(raw_params)
         self.param_names = _names(tuple(param_values), "params")
         if not self.state_names:
             raise ModelError(f"model {self.name!r}: at least one state is required")
@@ -267,6 +273,10 @@ class Model:
         result = outputs(self.symbols) if callable(outputs) else outputs
         if isinstance(result, Mapping):
             names = _names(tuple(result), "outputs")
+            clash = [k for k in names if k in self.input_names + self.disturbance_names + self.param_names]
+            if clash:  # a test case has one column per signal name
+                raise ModelError(f"model {self.name!r}: outputs {clash} have the name of an input, disturbance or "
+                                 f"parameter; name them differently")  # fmt: skip
             exprs = tuple(self._sympify(result[k], f"output {k!r}") for k in names)
         else:
             names = _names(result, "outputs")
