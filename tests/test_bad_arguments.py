@@ -130,3 +130,16 @@ def test_model_names_that_cannot_be_used_are_refused():
         rc.Model(name="m", states=("x",), params=["k"], dynamics=dyn)
     with pytest.raises(rc.ModelError, match=r"outputs \['u'\] have the name of an input"):
         rc.Model(name="m", states=("x",), inputs=("u",), outputs={"u": "x"}, dynamics=dyn)
+
+
+def test_load_suite_names_files_of_the_same_stem_and_checks_its_model(tmp_path):
+    import shutil
+
+    shutil.copytree(demo_run_file().parent / "suite", tmp_path / "s")
+    shutil.copy(tmp_path / "s" / "lane_change_01.csv", tmp_path / "s" / "lane_change_01.npz.csv")  # another stem: fine
+    assert len(rc.load_suite(tmp_path / "s")) == 4
+    shutil.copy(tmp_path / "s" / "lane_change_01.csv", tmp_path / "s" / "lane_change_01.CSV")
+    with pytest.raises(rc.DataError, match=r"files \['lane_change_01.CSV', 'lane_change_01.csv'\] would give cases"):
+        rc.load_suite(tmp_path / "s")
+    with pytest.raises(rc.ModelError, match="load_suite: model must be a reachconf Model"):
+        rc.load_suite(demo_run_file().parent / "suite", model="bicycle_closed_loop")

@@ -171,6 +171,14 @@ def load_suite(path, model=None) -> TestSuite:
         raise DataError(f"{folder}: cannot list the folder: {exc.strerror or exc}") from None
     if not files:
         raise DataError(f"{folder}: no .csv or .npz test case files")
+    stems = [p.stem for p in files]
+    same = sorted(p.name for p in files if stems.count(p.stem) > 1)
+    if same:  # a case is named by its file's stem
+        raise DataError(f"{folder}: files {same} would give cases of the same name; keep one of each")
+    if model is not None:
+        from reachconf.model.core import require_model
+
+        require_model(model, "load_suite")
     groups = cfg.get("groups", {})
     unknown = set(groups) - {p.name for p in files} - {p.stem for p in files}
     if unknown:
