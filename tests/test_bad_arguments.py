@@ -143,3 +143,14 @@ def test_load_suite_names_files_of_the_same_stem_and_checks_its_model(tmp_path):
         rc.load_suite(tmp_path / "s")
     with pytest.raises(rc.ModelError, match="load_suite: model must be a reachconf Model"):
         rc.load_suite(demo_run_file().parent / "suite", model="bicycle_closed_loop")
+
+
+def test_conformance_keyword_types():
+    spec = load_run(demo_run_file())
+    case = spec.suite()[0]
+    with pytest.raises(rc.OptionsError, match="max_distance_samples must be a non-negative integer"):
+        rc.reachset_conformance(spec.model, case, spec.W, spec.V, max_distance_samples=-1)
+    with pytest.raises(rc.OptionsError, match="progress must be True, False or None"):
+        rc.reachset_conformance(spec.model, case, spec.W, spec.V, progress="x")
+    with pytest.raises(rc.OptionsError, match="progress must be True, False or None"):
+        rc.trace_conformance(spec.model, case, spec.W, spec.V, progress="x")

@@ -469,7 +469,8 @@ def optctrl_trace(model, t, U, Y, W_lo, W_hi, V_lo, V_hi, x0, W, options, x0_fix
     for it in range(1, options.max_iterations + 1):
         status, DX, DW, _ = prob.solve_alg2(X, W, W_lo, W_hi, Vq_lo, Vq_hi, x0_fixed=x0_fixed)
         if status != "optimal":
-            message = f"Alg. 2: the linearised QP is {status} in iteration {it}: {NO_TRACE}"
+            what = status if status in ("infeasible", "unbounded") else f"not solved (solver status {status})"
+            message = f"Alg. 2: the linearised QP is {what} in iteration {it}: {NO_TRACE}"
             break
         X_tilde = X + DX
         W = np.clip(W + DW, W_lo, W_hi) if W.size else W

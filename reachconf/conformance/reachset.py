@@ -10,7 +10,7 @@ from scipy.optimize import linprog
 
 from reachconf.checks import check_options
 from reachconf.budget import TimeBudget, check_memory, check_time_limit, tube_bytes_per_step
-from reachconf.errors import ConformanceError, ReachError
+from reachconf.errors import ConformanceError, OptionsError, ReachError
 from reachconf.io.cases import case_arrays
 from reachconf.io.results import JsonResult
 from reachconf.plot import plot_measured
@@ -249,6 +249,12 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
     require_model(model, "reachset_conformance")
     options = check_options(options, ReachOptions, "reachset_conformance")
     check_time_limit(time_limit)
+    if isinstance(max_distance_samples, bool) or not isinstance(max_distance_samples, (int, np.integer)) \
+            or max_distance_samples < 0:  # fmt: skip
+        raise OptionsError(f"reachset_conformance: max_distance_samples must be a non-negative integer, "
+                           f"got {max_distance_samples!r}")  # fmt: skip
+    if progress is not None and not isinstance(progress, bool):
+        raise OptionsError(f"reachset_conformance: progress must be True, False or None, got {progress!r}")
     t, U, Y = case_arrays(model, case)
     name = getattr(case, "name", "case")
     if X0 is None:

@@ -454,6 +454,8 @@ def trace_conformance(model, case, W, V, method: str = "auto", options: TraceOpt
     require_model(model, where)
     options = check_options(options, TraceOptions, where)
     check_time_limit(time_limit)
+    if progress is not None and not isinstance(progress, bool):
+        raise OptionsError(f"{where}: progress must be True, False or None, got {progress!r}")
     if not isinstance(method, str) or method not in METHODS:
         raise OptionsError(f"{where}: method must be one of {METHODS}, got {method!r}")
     t, U, Y = case_arrays(model, case)
