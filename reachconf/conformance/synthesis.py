@@ -283,8 +283,12 @@ class SynthesisResult(JsonResult):
         axes = np.atleast_1d(ax)
         for j, name in enumerate(names):
             for i, (g, box) in enumerate(self.groups.items()):
-                axes[j].plot([i, i], [box.lo[j], box.hi[j]], lw=6, solid_capstyle="butt", label=g)
+                ok = self.group_verdict.get(g, Verdict.of(self.group_conformant.get(g))) is Verdict.CONFORMANT
+                # a marker too: a box of (nearly) zero width is a point; a group without a verified box is hollow
+                axes[j].plot([i, i], [box.lo[j], box.hi[j]], lw=6, solid_capstyle="butt", label=g, marker="_",
+                             markersize=10, alpha=1.0 if ok else 0.3)  # fmt: skip
             axes[j].set_title(name)
+            axes[j].set_xlim(-0.5, len(self.groups) - 0.5)
             axes[j].set_xticks(range(len(self.groups)), list(self.groups), rotation=45, fontsize=7)
         axes[0].figure.tight_layout()
         return axes
