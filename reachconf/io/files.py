@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reachconf.errors import DataError
+from reachconf.errors import DataError, ModelError
 from reachconf.io.atomic import atomic_write
 from reachconf.io.cases import TestCase, TestSuite, check_signals
 from reachconf.io.readers import read_csv_columns, read_npz_columns, read_suite_toml
@@ -175,10 +175,8 @@ def load_suite(path, model=None) -> TestSuite:
     same = sorted(p.name for p in files if stems.count(p.stem) > 1)
     if same:  # a case is named by its file's stem
         raise DataError(f"{folder}: files {same} would give cases of the same name; keep one of each")
-    if model is not None:
-        from reachconf.model.core import require_model
-
-        require_model(model, "load_suite")
+    if model is not None and not all(hasattr(model, a) for a in ("state_names", "input_names", "output_names")):
+        raise ModelError(f"load_suite: model must be a reachconf Model, got {type(model).__name__}")
     groups = cfg.get("groups", {})
     unknown = set(groups) - {p.name for p in files} - {p.stem for p in files}
     if unknown:
