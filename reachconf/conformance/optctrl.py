@@ -220,15 +220,14 @@ class TraceQP:
 
     def linearisation(self, X, W):
         """``(Ad, Bd, defect)`` of eqs. 30–32 around the trace ``(X, W)`` (unscaled)."""
-        comp = self.model.compiled()
-        pv = self.model.param_vector
-        dts = np.diff(self.tf)
+        comp, pv, dts = self.model.compiled(), self.model.param_vector, np.diff(self.tf)
         Xs = np.ascontiguousarray(X[:-1])
         Us = np.ascontiguousarray(self.Uf[:-1])
         Ws = np.ascontiguousarray(W) if self.q else np.zeros((self.J, 0))
         Ad, Bd = discrete_linearization(comp.jac, Xs, Us, Ws, dts, pv)
         Phi = rk4_one_step_each(comp.f, Xs, Us, Ws, dts, pv, self.substeps)
-        return Ad, Bd, Phi - X[1:]
+        with np.errstate(invalid="ignore", over="ignore"):  # a diverging trace: the QP reports it, numpy need not
+            return Ad, Bd, Phi - X[1:]
 
     def dynamics(self, X, W):
         """Scaled equality rows (CSC pieces) of the linearised dynamics around the trace ``(X, W)``."""
