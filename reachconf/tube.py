@@ -50,6 +50,12 @@ class Containment:
         """Time of the first measurement outside, or None."""
         return None if self.first_violation is None else float(self.times[self.first_violation])
 
+    def __repr__(self):
+        out = int(np.size(self.inside) - np.count_nonzero(self.inside))
+        first = "" if self.first_violation is None else f", first outside at t = {self.first_violation_time:g} s"
+        verdict = "conformant" if self.conformant else "not conformant"
+        return f"Containment({verdict}: {out} of {np.size(self.inside)} samples outside{first})"
+
 
 def _zono(c, G, ng):
     # kernel output (float64, right shapes): skip re-validation, it was a third of a short reach

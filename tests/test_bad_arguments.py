@@ -154,3 +154,10 @@ def test_conformance_keyword_types():
         rc.reachset_conformance(spec.model, case, spec.W, spec.V, progress="x")
     with pytest.raises(rc.OptionsError, match="progress must be True, False or None"):
         rc.trace_conformance(spec.model, case, spec.W, spec.V, progress="x")
+
+
+def test_containment_prints_a_summary():
+    from reachconf.tube import Containment
+
+    c = Containment(np.array([True, False, True] * 300), np.linspace(0, 9, 900), 1)
+    assert repr(c) == "Containment(not conformant: 300 of 900 samples outside, first outside at t = 0.01001 s)"
