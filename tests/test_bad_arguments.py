@@ -160,4 +160,4 @@ def test_containment_prints_a_summary():
     from reachconf.tube import Containment
 
     c = Containment(np.array([True, False, True] * 300), np.linspace(0, 9, 900), 1)
-    assert repr(c) == "Containment(not conformant: 300 of 900 samples outside, first outside at t = 0.01001 s)"
+    assert repr(c) == "Containment(not conformant: 300 of 900 samples outside, first outside at t = 0.0100111 s)"
