@@ -292,10 +292,11 @@ def _load_result(path: Path):
     d = read_json(path)
     types = {c.__name__: c for c in (SynthesisResult, ParetoFront, TraceResult, ReachsetResult, GapReport, GapLocation)}
     kind = d.get("result")
-    if kind is None:  # files written before results carried their type
+    if kind is None:  # files written before results carried their type; conform's and reach's per-case summaries
         kind = "SynthesisResult" if "groups" in d and "disturbances" in d else "ParetoFront" if "front" in d else None
     if not isinstance(kind, str) or kind not in types:
-        raise DataError(f"{path}: not a reachconf result that can be plotted (keys {sorted(d)[:6]})")
+        raise DataError(f"{path}: not a reachconf result that can be plotted (keys {sorted(d)[:6]}); plot a tube "
+                        f".npz (reachconf reach --out), a synthesis, Pareto or diagnosis .json")  # fmt: skip
     return types[kind].load(path)
 
 
@@ -407,10 +408,8 @@ def _save_partial(run, exc) -> str:
     """Partial results to a new file; the message tail for stderr."""
     from reachconf.io.jsonfile import to_jsonable
 
-    partial = run.partial
     done = getattr(exc, "partial", None)  # reachconf.runner.Interrupted: the jobs finished so far
-    if done is not None:
-        partial = [r for r in done if r is not None]
+    partial = run.partial if done is None else [r for r in done if r is not None]
     if not partial:
         return "; no results finished yet"
     data = {"interrupted": True, "complete": False, "command": run.args.command, "partial": to_jsonable(partial)}
