@@ -163,6 +163,9 @@ class GapReport(JsonResult):
                 best = list(corr.items())[:3]
                 if best:
                     lines.append(f"- |{ch}| grows with " + ", ".join(f"{k} (rho {v:+.2f})" for k, v in best))
+        for tb in self.tubes:  # the picture's tubes: a reach that failed is said here too
+            if "error" in tb:
+                lines += ["", f"Reach tube ({tb['label']}) of the held-out case: not drawn, the reach failed: {tb['error']}"]
         avp = self.where.get("actuator_vs_process")
         if avp:
             lines += ["", f"Actuator vs process: {avp['verdict']}"]
@@ -242,7 +245,9 @@ class GapReport(JsonResult):
             ax.legend(handles=[Patch(color=colors[t["label"]], alpha=0.5, label=f"{t['label']} (W minimal box)")
                                for t in drawn if t["label"] in colors] + ax.get_legend_handles_labels()[0],
                       fontsize=8)  # fmt: skip
-            ax.set_title("reach tubes of a held-out case, before and after modelling the effect", fontsize=9)
+            failed = [tb["label"] for tb in self.tubes if "tube" not in tb]  # a reach that failed is said, not left out
+            note = f"; {' and '.join(failed)}: the reach failed (see the report)" if failed else ""
+            ax.set_title(f"reach tubes of a held-out case, before and after modelling the effect{note}", fontsize=9)
         else:
             raise OptionsError(f"GapReport.plot: kind must be 'effects', 'boxes' or 'tubes', got {kind!r}")
         np.atleast_1d(ax)[0].figure.tight_layout()

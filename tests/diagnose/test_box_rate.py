@@ -41,3 +41,14 @@ def test_how_far_of_an_exact_effect_is_measured_at_the_datas_rate(motor_suite):
     assert shrink > 5.0, rep.before_after
     coarse = rc.diagnose(model, suite, effects=["input_offset"], progress=False, options=rc.DiagnoseOptions(box_rate=20.0))
     assert coarse.before_after["W_volume_shrink"] < shrink / 3
+
+
+def test_a_failed_reach_tube_is_said_not_left_out(motor_suite):
+    """tubes.png drew only the tube whose reach worked, without a word (found by a new-user audit)."""
+    model, suite = motor_suite
+    rep = rc.diagnose(model, suite, effects=["input_offset"], progress=False)
+    assert [tb["label"] for tb in rep.tubes] == ["base", "with effect"] and all("tube" in tb for tb in rep.tubes)
+    rep.tubes[0] = {"label": "base", "error": "the set exploded at t = 1 s"}
+    assert "Reach tube (base) of the held-out case: not drawn, the reach failed: the set exploded" in rep.summary()
+    ax = rep.plot(kind="tubes")
+    assert "base: the reach failed" in ax.get_title()
