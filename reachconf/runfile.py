@@ -31,7 +31,6 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 
 from reachconf.checks import check_workers
 from reachconf.conformance.synthesis import SynthesisOptions
@@ -125,18 +124,13 @@ def _interval(value, dim, where) -> Interval:
     ok = isinstance(value, list) and all(isinstance(p, list) and all(_is_number(v) for v in p) for p in value)
     if not ok:
         raise DataError(f"{where}: must be a list of [lo, hi] pairs of numbers, got {value!r}"[:300])
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise DataError(f"{where}: must be a list of [lo, hi] pairs of numbers") from None
-    if arr.ndim != 2 or arr.shape[1] != 2:
-        raise DataError(f"{where}: must be a list of [lo, hi] pairs, got shape {arr.shape}")
-    if arr.shape[0] != dim:
-        raise DataError(f"{where}: has {arr.shape[0]} intervals, the model needs {dim}")
-    try:
-        return Interval(arr[:, 0], arr[:, 1])
+    try:  # the pairs' shape, lo <= hi, finite: Interval.from_list's checks, named with the file and key
+        box = Interval.from_list(value)
     except ReachconfError as exc:
         raise DataError(f"{where}: {exc}") from None
+    if box.dim != dim:
+        raise DataError(f"{where}: has {box.dim} intervals, the model needs {dim}")
+    return box
 
 
 def _table(raw, key, where):
