@@ -218,6 +218,8 @@ class RunOutputs:
 
     def __init__(self, command: str, folder=None, json=None):
         self.command = command
+        if folder is not None and not os.fspath(folder):  # Path("") is the current folder
+            raise OutputError("--out: the folder name is empty")
         self.folder = None if folder is None else Path(folder)
         self._json_text = None if json is None else os.fspath(json)  # a trailing "/" (a folder) is lost in Path
         self.json = None if json is None else Path(json)

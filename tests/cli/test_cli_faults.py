@@ -433,3 +433,23 @@ def test_a_model_module_next_to_the_run_file_is_found(capsys, monkeypatch, run_f
     one_line_error(status, err, "no test case ['nope']")  # the model was loaded; the case selection fails after it
     status, _, err = main(capsys, "conform", edit(run_file, f'"{name}:model"', '"not_there_xyz:model"'))
     one_line_error(status, err, "No module named 'not_there_xyz'", "next to the run file")
+
+
+def test_an_empty_out_is_refused(capsys, monkeypatch, run_file, tmp_path):
+    patch(monkeypatch, WORK["conform"], no_work)
+    monkeypatch.chdir(tmp_path)
+    status, _, err = main(capsys, "conform", run_file, "--out", "")
+    one_line_error(status, err, "--out: the folder name is empty")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["demo"]  # nothing written beside the run's folder
+
+
+@pytest.mark.parametrize("table, needle", [
+    ("holdout = 2.0", "[diagnose]: holdout must be a number in (0, 1), got 2.0"),
+    ("seed = -1", "[diagnose]: seed must be a non-negative integer, got -1"),
+    ('effects = [["actuator_lag", "vx"]]', "[diagnose]: "),
+])
+def test_diagnose_settings_are_named_with_the_run_file(capsys, monkeypatch, run_file, table, needle):
+    patch(monkeypatch, WORK["diagnose"], no_work)
+    run_file.write_text(run_file.read_text() + f"\n[diagnose]\n{table}\n")
+    status, _, err = main(capsys, "diagnose", run_file)
+    one_line_error(status, err, f"{run_file}: [diagnose]", needle)

@@ -102,3 +102,8 @@ def test_alg2_finds_the_trace_from_the_zero_disturbance_start(states):
     W, V = rc.Interval([-1.0, -200.0], [1.0, 200.0]), rc.Interval([-0.06, -0.02], [0.06, 0.02])
     res = rc.trace_conformance(_motor(states), case, W, V, method="optctrl")
     assert res.conformant, res.message
+
+
+def test_an_initial_set_of_the_wrong_kind_is_an_options_error():
+    with pytest.raises(rc.OptionsError, match="X0 must be an Interval, a Zonotope or None, got list"):
+        rc.SynthesisOptions(X0=[[0, 1], [0, 1]])
