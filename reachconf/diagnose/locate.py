@@ -28,9 +28,9 @@ import numpy as np
 
 from reachconf.conformance.trace import TraceOptions, trace_disturbances
 from reachconf.checks import check_options
-from reachconf.errors import ConformanceError, DataError, OptionsError
+from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.results import JsonResult
-from reachconf.io.cases import TestCase, TestSuite, case_arrays
+from reachconf.io.cases import case_arrays, suite_cases
 from reachconf.model.core import require_model
 from reachconf.model.outputs import evaluate_outputs
 from reachconf_kernels.integrate import rk4_one_step_each
@@ -155,11 +155,7 @@ def locate_gap(model, suite, V=None, envelope: float = 4.0, min_duration: float 
                             ("group_share", group_share, lambda v: 0 < v <= 1)):  # fmt: skip
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or not ok(value):
             raise OptionsError(f"locate_gap: {name} out of range, got {value!r}")
-    if not isinstance(suite, (TestSuite, list, tuple)) or not all(isinstance(c, TestCase) for c in suite):
-        raise DataError(f"locate_gap: suite must be a TestSuite or a list of TestCase, got {type(suite).__name__}")
-    cases = list(suite)
-    if not cases:
-        raise ConformanceError("the suite has no test cases")
+    cases = suite_cases(suite, "locate_gap")
     if model.q == 0:
         raise ConformanceError(f"model {model.name!r} has no disturbances to locate")
     traces = {c.name: trace_disturbances(model, c, V=V, options=options) for c in cases}

@@ -77,8 +77,8 @@ from reachconf.diagnose.verdict import (
     verdict_text,
 )
 from reachconf.checks import check_options
-from reachconf.errors import ConformanceError, DataError, OptionsError
-from reachconf.io.cases import TestCase, TestSuite
+from reachconf.errors import ConformanceError, OptionsError
+from reachconf.io.cases import TestSuite, suite_cases
 from reachconf.model.core import require_model
 from reachconf.model.outputs import state_estimate
 from reachconf.sets.core import Interval
@@ -184,9 +184,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         raise OptionsError(f"holdout must be in (0, 1), got {holdout!r}")
     if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
         raise OptionsError(f"diagnose: seed must be a non-negative integer, got {seed!r}")
-    if not isinstance(suite, (TestSuite, list, tuple)) or not all(isinstance(c, TestCase) for c in suite):
-        raise DataError(f"diagnose: suite must be a TestSuite or a list of TestCase, got {type(suite).__name__}")
-    cases = list(suite)
+    cases = suite_cases(suite, "diagnose")
     if len(cases) < 2:
         raise ConformanceError(f"diagnose needs at least two test cases (training and held-out), got {len(cases)}")
     if model.q == 0:
