@@ -167,6 +167,12 @@ def test_dlc4_diagnosis_on_a_quick_run(quick, tmp_path):
     for w in d["widths"]:
         lo, hi = w["arg_reach"]
         assert lo <= w["arg_samples"][0] + 1e-6 and w["arg_samples"][1] <= hi + 1e-6
+    # item 7: the worst cases are simulated trajectories, so the reach (which lasts the run) holds them
+    assert d["worst_case"] and {"delta", "omega", "tanh argument"} <= set(d["worst_case"][0])
+    for row in d["worst_case"]:
+        for label in ("delta", "omega", "tanh argument"):
+            (lo, hi), (rlo, rhi) = row[label], row[label + " reach"]
+            assert lo <= hi and rlo <= lo + 1e-6 and hi <= rhi + 1e-6
 
 
 def test_dlc4_bad_input_is_one_line_and_exit_2(quick, tmp_path, capsys):
