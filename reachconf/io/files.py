@@ -201,15 +201,24 @@ def _case_csv(case: TestCase) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _npz_bytes(arrays: dict) -> bytes:
+    """An ``.npz`` archive of ``arrays`` (as ``np.savez``, which cannot take a signal named ``file``)."""
+    import io as _io
+    import zipfile
+
+    buf = _io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_STORED) as zf:
+        for name, value in arrays.items():
+            with zf.open(f"{name}.npy", "w", force_zip64=True) as f:
+                np.lib.format.write_array(f, np.asanyarray(value), allow_pickle=False)
+    return buf.getvalue()
+
+
 def save_case(case: TestCase, path) -> Path:
     """Write one case as ``.csv`` or ``.npz`` (by the suffix of ``path``), atomically."""
     path = Path(path)
     if path.suffix.lower() == ".npz":
-        import io as _io
-
-        buf = _io.BytesIO()
-        np.savez(buf, **{"t": case.t, **case.signals})
-        atomic_write(path, buf.getvalue())
+        atomic_write(path, _npz_bytes({"t": case.t, **case.signals}))
     else:
         atomic_write(path, _case_csv(case))
     return path

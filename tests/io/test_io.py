@@ -38,6 +38,16 @@ def test_round_trip_csv_and_npz(tmp_path):
             np.testing.assert_array_equal(c0.extras["u_req"], c1.extras["u_req"])
 
 
+def test_npz_case_with_a_signal_named_file(tmp_path):
+    """np.savez takes its archive as ``file``: a signal of that name raised TypeError; it is saved and read back."""
+    case = TestCase("c", "g", T, np.column_stack([np.sin(T)]), np.column_stack([T]), ("file",), ("y",))
+    back = load_suite(save_suite(TestSuite([case]), tmp_path / "s", fmt="npz"))
+    assert back[0].input_names == ("file",)
+    np.testing.assert_array_equal(back[0].U[:, 0], np.sin(T))
+    with np.load(tmp_path / "s" / "c.npz") as z:  # a plain numpy archive
+        assert sorted(z.files) == ["file", "t", "y"]
+
+
 def test_save_suite_into_a_folder_holding_another_suite(tmp_path):
     """Another suite's case files would silently join the saved suite when loaded: refused, or replaced on request."""
     folder = save_suite(TestSuite([make_case("a", "lc"), make_case("b", "lc"), make_case("c", "dlc")], name="old"),
