@@ -156,7 +156,9 @@ class TraceResult(JsonResult):
     margins : dict
         Channel (disturbance or output name) -> smallest distance to the
         bound over the trace (negative where the bound is violated; output
-        margins already reduced by the integration-error estimate).
+        margins already reduced by the integration-error estimate).  NaN
+        (``null`` in JSON) for the disturbances when Alg. 2 found no trace
+        (``UNDECIDED``): its last guess is no certificate.
     method : str
         DISTURBANCETRACE used: ``"perstep (measured|simulated)"``,
         ``"optctrl"`` (Alg. 2), or for ``method="auto"`` on a long case the
@@ -237,10 +239,11 @@ class TraceResult(JsonResult):
 
     def worst(self):
         """``(channel, time, margin)`` of the smallest margin (negative: where the trace leaves W or V)."""
-        if not self.margins:
+        known = {k: v for k, v in self.margins.items() if not np.isnan(v)}  # NaN: no margin (see ``margins``)
+        if not known:
             return None
-        ch = min(self.margins, key=self.margins.get)
-        return ch, self.margin_times.get(ch), float(self.margins[ch])
+        ch = min(known, key=known.get)
+        return ch, self.margin_times.get(ch), float(known[ch])
 
     def to_dict(self) -> dict:
         """The verdict, margins and boxes, and the traces themselves (``t``, ``X``, ``W_trace``, ``V_trace``).
@@ -384,9 +387,15 @@ def simulate_verdict(model, case_name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, 
         where = describe_violation(model, worst, v.margin[worst], v.margin_time[worst], W_lo, W_hi, V_lo, V_hi)
         message = (message + "; " if message else "") + f"the simulated trace {where}"
     verdict = Verdict.of(ok, undecided=not ok and (not v.finite or search_failed))
-    return TraceResult(case_name, t, bool(ok), np.array(x0, dtype=float), v.X, Wt, v.V, v.margin, method,
+    margins, margin_times = dict(v.margin), dict(v.margin_time)
+    if search_failed and not ok:  # the disturbance trace is the search's last guess, not one it found: no W margins
+        for name in model.disturbance_names:
+            if name in margins:
+                margins[name] = np.nan
+                margin_times.pop(name, None)
+    return TraceResult(case_name, t, bool(ok), np.array(x0, dtype=float), v.X, Wt, v.V, margins, method,
                        time.perf_counter() - t0, message, v.yerr, model.disturbance_names, model.output_names,
-                       verdict, margin_times=v.margin_time, trace_step=step, error_bounds=(v.v_lo, v.v_hi))  # fmt: skip
+                       verdict, margin_times=margin_times, trace_step=step, error_bounds=(v.v_lo, v.v_hi))  # fmt: skip
 
 
 def trace_bytes_per_sample(model, options, method) -> tuple[float, float]:

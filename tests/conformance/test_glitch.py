@@ -34,3 +34,17 @@ def test_synthesis_names_the_glitched_case(glitched):
     spec, case = glitched
     with pytest.raises(rc.ConformanceError, match="case 'glitch': synthesis step 1 found no disturbance trace"):
         rc.synthesize_W(spec.model, rc.TestSuite([case]), spec.V, options=spec.synthesis_options, progress=False)
+
+
+def test_failed_alg2_search_reports_no_disturbance_margins(glitched):
+    """Alg. 2 found no trace: its last guess is no certificate, so its W margins are NaN (null in JSON), not W's half-widths."""
+    import json
+
+    spec, case = glitched
+    res = rc.trace_conformance(spec.model, case, spec.W, spec.V, method="optctrl")
+    assert res.verdict is Verdict.UNDECIDED and "no disturbance trace" in res.message, res.message
+    names = spec.model.disturbance_names
+    assert all(np.isnan(res.margins[w]) for w in names) and not set(names) & set(res.margin_times)
+    assert res.worst()[0] in spec.model.output_names  # the outputs' margins stay: where the last guess leaves V
+    d = json.loads(res.to_json())
+    assert all(d["margins"][w] is None for w in names)
