@@ -254,11 +254,13 @@ def cmd_plot(args, run):
 
     import numpy as np
 
+    from reachconf.drawable import load_drawable
+
     path = Path(args.result)
     if not path.is_file():
         raise DataError(f"{path}: no such result file")
     out = run.outputs.folder or path.parent
-    result = _load_result(path)
+    result = load_drawable(path)
     kwargs = {}
     if args.dims:
         if "dims" not in inspect.signature(result.plot).parameters:
@@ -272,32 +274,6 @@ def cmd_plot(args, run):
     _savefig(ax.figure, target)
     print(f"wrote {target}")
     return EXIT_OK
-
-
-def _load_result(path: Path):
-    """A saved result by its file: a tube ``.npz``, or a result ``.json`` (by its ``"result"`` key or its fields)."""
-    from reachconf.conformance.pareto import ParetoFront
-    from reachconf.conformance.reachset import ReachsetResult
-    from reachconf.conformance.synthesis import SynthesisResult
-    from reachconf.conformance.trace import TraceResult
-    from reachconf.diagnose.locate import GapLocation
-    from reachconf.diagnose.report import GapReport
-    from reachconf.io.results import read_json
-    from reachconf.tube import ReachTube
-
-    if path.suffix == ".npz":
-        return ReachTube.load(path)
-    if path.suffix != ".json":
-        raise DataError(f"{path}: unsupported result type {path.suffix!r} (use a tube .npz or a result .json)")
-    d = read_json(path)
-    types = {c.__name__: c for c in (SynthesisResult, ParetoFront, TraceResult, ReachsetResult, GapReport, GapLocation)}
-    kind = d.get("result")
-    if kind is None:  # files written before results carried their type; conform's and reach's per-case summaries
-        kind = "SynthesisResult" if "groups" in d and "disturbances" in d else "ParetoFront" if "front" in d else None
-    if not isinstance(kind, str) or kind not in types:
-        raise DataError(f"{path}: not a reachconf result that can be plotted (keys {sorted(d)[:6]}); plot a tube "
-                        f".npz (reachconf reach --out), a synthesis, Pareto or diagnosis .json")  # fmt: skip
-    return types[kind].load(path)
 
 
 def cmd_diagnose(args, run):
@@ -367,7 +343,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(fn=cmd_diagnose, workers=None, scheduler=None, worker_timeout=None)
     commands.add_commands(sub, common, {"warmup": commands.cmd_warmup, "pareto": lambda args, run: commands.cmd_pareto(
         args, run, _load, _select_cases, _savefig)})  # fmt: skip
-    sp = sub.add_parser("plot", help="plot a result (tube .npz, synthesis or Pareto JSON)")
+    sp = sub.add_parser("plot", help="plot a result (tube .npz; conform, synthesis, Pareto or diagnosis JSON)")
     sp.add_argument("result")
     sp.add_argument("--out", help="folder for the PNG (default: next to the result)")
     sp.add_argument("--dims", nargs=2, help="two states of a tube (names or indices) or outputs of a reachset result")

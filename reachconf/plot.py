@@ -10,7 +10,7 @@ import numpy as np
 from reachconf.errors import DataError, SetError
 from reachconf.io.atomic import atomic_write
 
-__all__ = ["plot_tube", "plot_measured", "save_figure"]
+__all__ = ["plot_tube", "plot_measured", "save_figure", "VerdictSummary"]
 
 
 def plot_tube(tube, dims=None, ax=None, color="C0", alpha=0.35, outline=True, label=None, measured=None):
@@ -128,3 +128,65 @@ def save_figure(fig, path, dpi=130, **savefig):
     buf = io.BytesIO()
     fig.savefig(buf, format=path.suffix.lstrip(".") or "png", dpi=dpi, **savefig)
     return atomic_write(path, buf.getvalue())
+
+
+class VerdictSummary:
+    """The per-case verdicts of ``reachconf conform`` (its ``conformance.json``), drawn by ``reachconf plot``.
+
+    Parameters
+    ----------
+    entries : dict
+        Case name -> ``{"trace": {...}, "reachset": {...}}`` (either or both), each with its ``"verdict"``.
+    """
+
+    KINDS = ("trace", "reachset")
+    COLORS = {"conformant": "#4daf4a", "not_conformant": "#e41a1c", "undecided": "#bdbdbd"}
+
+    def __init__(self, entries: dict):
+        self.entries = dict(entries)
+
+    @classmethod
+    def from_dict(cls, d: dict):
+        """The summary if ``d`` is a ``conformance.json`` of ``reachconf conform``, else None."""
+        ok = bool(d) and all(isinstance(e, dict) and e and set(e) <= set(cls.KINDS)
+                             and all(isinstance(v, dict) and v.get("verdict") in cls.COLORS for v in e.values())
+                             for e in d.values())  # fmt: skip
+        return cls(d) if ok else None
+
+    @staticmethod
+    def _detail(kind: str, e: dict) -> str:
+        if kind == "trace":
+            known = {k: v for k, v in (e.get("margins") or {}).items() if v is not None}
+            if not known:
+                return ""
+            ch = min(known, key=known.get)
+            return f"smallest margin {ch}: {known[ch]:.3g}"
+        t = e.get("first_violation_time")
+        return "" if t is None else f"leaves the reach at t = {t:g} s"
+
+    def plot(self, ax=None):
+        """One row per case, one column per kind of conformance, coloured by verdict; returns the Axes."""
+        import matplotlib.pyplot as plt
+        from matplotlib.patches import Patch
+
+        names = list(self.entries)
+        kinds = [k for k in self.KINDS if any(k in e for e in self.entries.values())]
+        if ax is None:
+            _, ax = plt.subplots(figsize=(4.5 * len(kinds) + 2, min(40.0, 1.2 + 0.35 * len(names))))
+        for i, name in enumerate(names):
+            for j, kind in enumerate(kinds):
+                e = self.entries[name].get(kind)
+                if e is None:
+                    continue
+                ax.add_patch(plt.Rectangle((j, i), 1, 1, color=self.COLORS[e["verdict"]], ec="white"))
+                ax.text(j + 0.5, i + 0.5, self._detail(kind, e), ha="center", va="center", fontsize=7)
+        ax.set_xlim(0, len(kinds))
+        ax.set_ylim(len(names), 0)
+        ax.set_xticks(np.arange(len(kinds)) + 0.5, kinds)
+        ax.set_yticks(np.arange(len(names)) + 0.5, names)
+        ax.tick_params(length=0)
+        ax.legend(handles=[Patch(color=c, label=v.replace("_", " ")) for v, c in self.COLORS.items()],
+                  loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)  # fmt: skip
+        ax.set_title("conformance per case")
+        ax.figure.tight_layout()
+        return ax

@@ -40,6 +40,9 @@ def test_conform_reach_synth_plot(tmp_path, run_copy):
     verdicts = json.loads((out / "c.json").read_text())
     assert list(verdicts) == ["lane_change_02"]
     assert verdicts["lane_change_02"]["reachset"]["conformant"] is True  # the true W is reachset conformant
+    proc = run("plot", out / "c.json", "--out", out)  # conform's per-case verdicts
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "c.png").stat().st_size > 5_000
     proc = run("reach", run_copy, "--case", "lane_change_01", "--out", out)
     assert proc.returncode == 0, proc.stderr
     assert (out / "lane_change_01_tube.npz").exists() and (out / "lane_change_01_tube.png").exists()

@@ -158,3 +158,25 @@ def test_plot_of_saved_results(tmp_path):
     (tmp_path / "bad.json").write_text(json.dumps(d))
     assert cli.main(["plot", str(tmp_path / "bad.json")]) == 2
     assert not np.any([p.name == "bad.png" for p in tmp_path.iterdir()])
+
+
+def test_plot_of_a_conformance_summary(tmp_path):
+    """reachconf conform's conformance.json (verdicts per case) is drawn: one row per case, coloured by verdict."""
+    from reachconf.drawable import load_drawable
+    from reachconf.plot import VerdictSummary
+
+    d = {"a": {"trace": {"verdict": "conformant", "margins": {"w1": 0.5, "y": 0.01}},
+               "reachset": {"verdict": "not_conformant", "first_violation_time": 1.5}},
+         "b": {"trace": {"verdict": "undecided", "margins": {"w1": None, "y": -3.0}}}}  # fmt: skip
+    (tmp_path / "conformance.json").write_text(json.dumps(d))
+    summary = load_drawable(tmp_path / "conformance.json")
+    assert isinstance(summary, VerdictSummary) and list(summary.entries) == ["a", "b"]
+    ax = summary.plot()
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["a", "b"]
+    texts = {t.get_text() for t in ax.texts}
+    assert {"smallest margin y: 0.01", "leaves the reach at t = 1.5 s", "smallest margin y: -3"} <= texts
+    assert len(ax.patches) == 3
+    assert cli.main(["plot", str(tmp_path / "conformance.json")]) == 0
+    assert (tmp_path / "conformance.png").stat().st_size > 1000
+    for bad in ({"a": {"trace": {"verdict": "maybe"}}}, {"a": {"other": {"verdict": "conformant"}}}):
+        assert VerdictSummary.from_dict(bad) is None
