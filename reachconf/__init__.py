@@ -45,6 +45,7 @@ _LAZY = {
     "as_zonotope": "reachconf.sets.convert",
     "Model": "reachconf.model.core",
     "simulate": "reachconf.model.simulate",
+    "worst_case": "reachconf.model.worst_case",
     "reach": "reachconf.reach",
     "reach_run": "reachconf.reach",
     "reach_streamed": "reachconf.reach_stream",

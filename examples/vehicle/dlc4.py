@@ -22,7 +22,7 @@ identified as in ``run.py`` (step 1; ``--params``: taken from its
    of the initial set, corners of ``W`` held or switched at random), and,
    for the rate-limited actuator, the range of the argument
    ``k (delta_t - delta) / r`` of its ``tanh`` in both;
-7. the worst case over the whole run (:func:`worst_case`): at every half
+7. the worst case over the whole run (:func:`reachconf.worst_case`): at every half
    second, the largest and smallest steering angle, yaw rate and ``tanh``
    argument any disturbance in ``W_opt`` and start in ``X0`` can reach
    (bang-bang disturbances from the adjoint of the linearised trajectory,
@@ -115,51 +115,6 @@ def tanh_argument(model, X, u):
     return p["k_delta"] * (target - X[..., 7]) / p["r_delta"]
 
 
-def worst_case(model, X0, t, U, W, value, K, iters=25):
-    """Largest ``value(x(t_K), u_K)`` over starts in ``X0`` and disturbances in ``W`` (a local optimum).
-
-    Pontryagin's condition for a box ``W``: the disturbance maximising a
-    function of the end state is bang-bang, ``w(t) = c + r sign(B(t)^T lam(t))``
-    with ``lam`` the adjoint of the trajectory linearised about the current
-    disturbance (the model's compiled Jacobian).  Iterated from ``W``'s centre,
-    accepting a step towards the bang-bang signal only when the simulated
-    value grows; every returned value is that of a simulated trajectory, so
-    the result is an inner bound of the true reachable range.
-    """
-    n, m, q, dt = model.n, model.m, model.q, float(t[1] - t[0])
-    c, r, xc, xr = W.center, W.radius, X0.center, X0.radius
-    jac, p = model.compiled().jac, model.param_vector
-
-    def run(x0, w):
-        X = simulate(model, x0, t[: K + 1], inputs=U[: K + 1], disturbances=w, substeps=4, check=False)
-        return X, (float(value(X[K], U[K])) if np.all(np.isfinite(X)) else -np.inf)
-
-    def gradient(x, u):
-        v0, e = value(x, u), 1e-6
-        return np.array([(value(x + e * d, u) - v0) / e for d in np.eye(n)])
-
-    w, x0 = np.tile(c, (K, 1)), xc.copy()
-    X, best = run(x0, w)
-    z, J = np.zeros(n + m + q), np.zeros((n, n + m + q))
-    for _ in range(iters):
-        lam, gw = gradient(X[K], U[K]), np.empty((K, q))
-        for k in range(K - 1, -1, -1):  # adjoint of the Euler-linearised steps (a direction, not a bound)
-            z[:n], z[n : n + m], z[n + m :] = X[k], U[k], w[k]
-            jac(z, p, J)
-            gw[k] = dt * (J[:, n + m :].T @ lam)
-            lam = lam + dt * (J[:, :n].T @ lam)
-        target_w, target_x0 = c + r * np.sign(gw), xc + xr * np.sign(lam)
-        for step in (1.0, 0.5, 0.25, 0.1, 0.03):
-            wn, xn = w + step * (target_w - w), x0 + step * (target_x0 - x0)
-            Xn, v = run(xn, wn)
-            if v > best + 1e-9:
-                X, best, w, x0 = Xn, v, wn, xn
-                break
-        else:
-            break
-    return best
-
-
 def worst_cases(model, tube, X0, t, U, W):
     """Item 7: per half second, the worst-case range of delta, omega (and the tanh argument) against the reach's."""
     names = model.state_names
@@ -170,8 +125,8 @@ def worst_cases(model, tube, X0, t, U, W):
     for K in range(50, t.size, 50):
         row = {"t": float(t[K])}
         for label, g in funcs.items():
-            hi = worst_case(model, X0, t, U, W, g, K)
-            lo = -worst_case(model, X0, t, U, W, lambda x, u: -g(x, u), K)
+            hi = rc.worst_case(model, X0, t, g, inputs=U, W=W, at=K).value
+            lo = -rc.worst_case(model, X0, t, lambda x, u: -g(x, u), inputs=U, W=W, at=K).value
             row[label] = [round(lo, 4), round(hi, 4)]
             if tube is not None and K < len(tube.times):
                 Z = tube.time_point_sets[K]

@@ -8,7 +8,9 @@
 * :mod:`reachconf.model.outputs` — the model evaluated on data: the output
   map on traces and on sets, state estimates from measured outputs;
 * :mod:`reachconf.model.simulate` — :func:`simulate` (compiled RK4, the one
-  simulation entry point) and the reference :func:`simulate_ivp`.
+  simulation entry point) and the reference :func:`simulate_ivp`;
+* :mod:`reachconf.model.worst_case` — :func:`worst_case`, the trajectory that
+  drives a function of the state furthest (an inner bound of the reachable set).
 """
 
 from reachconf.model.codegen import CompiledModel, cache_dir, compile_model
@@ -22,7 +24,8 @@ from reachconf.model.outputs import (
     state_index_of_outputs,
 )
 from reachconf.model.simulate import simulate, simulate_ivp
+from reachconf.model.worst_case import WorstCase, worst_case
 
 __all__ = ["Model", "Symbols", "CompiledModel", "compile_model", "cache_dir", "simulate", "simulate_ivp",
            "affine_output", "evaluate_outputs", "output_enclosure", "output_index_of_states", "state_estimate",
-           "state_index_of_outputs"]  # fmt: skip
+           "state_index_of_outputs", "WorstCase", "worst_case"]  # fmt: skip

@@ -39,6 +39,21 @@ def _simulate_many(model, X0, times, W, inputs, count, rng, dense=3):
     return np.array(out_X), np.array(out_td), np.array(out_Xd)
 
 
+def _worst_runs(model, X0, times, W, inputs, states, ats, dense=3):
+    """Worst cases (``rc.worst_case``: each state of ``states`` driven furthest up and down at each sample index of
+    ``ats``, W's centre after it), simulated again as :func:`_simulate_many` simulates: ``(found, (X, td, Xd))``."""
+    found, runs = [], []
+    for j in states:
+        for sign in (1.0, -1.0):
+            for at in ats:
+                wc = rc.worst_case(model, X0, times, sign * np.eye(model.n)[j], inputs=inputs, W=W, at=at)
+                w = np.vstack([wc.disturbances, np.tile(W.center, (times.size - 1 - at, 1))])
+                found.append((j, sign, at, wc.value))
+                runs.append(simulate_ivp(model, wc.x0, times, inputs=inputs, disturbances=w, rtol=1e-10, atol=1e-12,
+                                         dense=dense))  # fmt: skip
+    return found, tuple(np.array([r[i] for r in runs]) for i in range(3))
+
+
 def _assert_tube_contains(tube, X, td, Xd, tol=1e-9):
     """Every time point in its time-point set; every dense sample in a time-interval set covering its time."""
     N, K, n = X.shape
@@ -153,6 +168,12 @@ def bike_runs():
     return model, inputs, _simulate_many(model, BIKE_X0, t, BIKE_W, inputs, 200, rng)
 
 
+@pytest.fixture(scope="module")
+def bike_worst(bike_runs):
+    model, inputs, _ = bike_runs
+    return _worst_runs(model, BIKE_X0, BIKE_TIMES, BIKE_W, inputs, (1, 2, 4, 5), (7, 15))[1]
+
+
 @pytest.mark.parametrize(
     "options",
     [
@@ -163,10 +184,11 @@ def bike_runs():
     ],
     ids=["lin2", "lin3", "poly", "adaptive"],
 )
-def test_bicycle_with_disturbances_sound(bike_runs, options):
+def test_bicycle_with_disturbances_sound(bike_runs, bike_worst, options):
     model, inputs, (X, td, Xd) = bike_runs
     tube = rc.reach(model, BIKE_X0, BIKE_TIMES, inputs=inputs, W=BIKE_W, options=options)
     _assert_tube_contains(tube, X, td, Xd)
+    _assert_tube_contains(tube, *bike_worst)  # and 16 worst cases: the edge of the reachable set
     _assert_tight(tube, X)
 
 
@@ -187,6 +209,12 @@ def closed_loop_runs():
     return model, inputs, _simulate_many(model, CL_X0, CL_TIMES, CL_W, inputs, 200, rng, dense=2)
 
 
+@pytest.fixture(scope="module")
+def closed_loop_worst(closed_loop_runs):
+    model, inputs, _ = closed_loop_runs
+    return _worst_runs(model, CL_X0, CL_TIMES, CL_W, inputs, (1, 2, 5), (10, 40), dense=2)[1]
+
+
 @pytest.mark.parametrize(
     "options",
     [rc.ReachOptions(algorithm="lin", tensor_order=2, time_step=0.02),
@@ -194,10 +222,11 @@ def closed_loop_runs():
      rc.ReachOptions(algorithm="adaptive")],
     ids=["lin2", "poly", "adaptive"],
 )  # fmt: skip
-def test_closed_loop_bicycle_lane_change_sound(closed_loop_runs, options):
+def test_closed_loop_bicycle_lane_change_sound(closed_loop_runs, closed_loop_worst, options):
     model, inputs, (X, td, Xd) = closed_loop_runs
     tube = rc.reach(model, CL_X0, CL_TIMES, inputs=inputs, W=CL_W, options=options)
     _assert_tube_contains(tube, X, td, Xd)
+    _assert_tube_contains(tube, *closed_loop_worst)  # and 12 worst cases
     _assert_tight(tube, X)
 
 

@@ -3,13 +3,14 @@
 Table 6's rate-limited model (``bicycle_closed_loop_rate_limited``) in the regime where DLC_4 fails: a lane
 change over 20 m at 10 m/s asks for more than the actuator's 0.4 rad/s, so the steering rate is at its limit
 for most of the run.  200 seeded trajectories (corners and random points of X0, extreme disturbances switched
-at random every sample): every state at a sample time lies in its time-point set, every dense sample in the
+at random every sample) and 16 worst cases (``rc.worst_case``: Y, psi, omega, delta driven furthest up and down
+at 1.0 s and 2.5 s): every state at a sample time lies in its time-point set, every dense sample in the
 time-interval set of its step.
 """
 
 import numpy as np
 import pytest
-from test_reach import _assert_tight, _assert_tube_contains, _simulate_many
+from test_reach import _assert_tight, _assert_tube_contains, _simulate_many, _worst_runs
 
 import reachconf as rc
 from reachconf.demo import lane_change_reference
@@ -32,6 +33,21 @@ def saturated_runs():
     return model, inputs, _simulate_many(model, X0, TIMES, W, inputs, 200, rng, dense=2)
 
 
+@pytest.fixture(scope="module")
+def worst_runs(saturated_runs):
+    """Y, psi, omega and delta driven furthest up and down at 1.0 s and 2.5 s (``rc.worst_case``)."""
+    model, inputs, _ = saturated_runs
+    return _worst_runs(model, X0, TIMES, W, inputs, (1, 2, 5, 7), (10, 25), dense=2)
+
+
+def test_worst_cases_go_beyond_the_random_runs(saturated_runs, worst_runs):
+    """The searched trajectories reach further than any of the 200 random ones, in every direction and time."""
+    _, _, (X, _, _) = saturated_runs
+    runs, _ = worst_runs
+    beyond = np.array([value - (sign * X[:, at, j]).max() for j, sign, at, value in runs])
+    assert np.all(beyond > 0), beyond  # measured: 20-87 % of the random runs' spread beyond their extremes
+
+
 def test_the_runs_are_at_the_steering_rate_limit(saturated_runs):
     """The regime of the test: most of the time the steering moves at over 90 % of its rate limit."""
     model, _, (X, _, _) = saturated_runs
@@ -48,10 +64,11 @@ def test_the_runs_are_at_the_steering_rate_limit(saturated_runs):
      rc.ReachOptions()],
     ids=["lin2", "poly", "adaptive"],
 )  # fmt: skip
-def test_rate_limited_closed_loop_at_the_rate_limit_sound(saturated_runs, options):
+def test_rate_limited_closed_loop_at_the_rate_limit_sound(saturated_runs, worst_runs, options):
     model, inputs, (X, td, Xd) = saturated_runs
     tube = rc.reach(model, X0, TIMES, inputs=inputs, W=W, options=options)
     _assert_tube_contains(tube, X, td, Xd)
+    _assert_tube_contains(tube, *worst_runs[1])  # and the 16 worst cases
     _assert_tight(tube, X)
 
 
