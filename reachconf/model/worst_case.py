@@ -29,7 +29,6 @@ from reachconf.errors import DataError, OptionsError
 from reachconf.model.core import require_model
 from reachconf.model.simulate import simulate
 from reachconf.sets import as_box
-from reachconf_kernels.adjoint import adjoint_sweep
 
 __all__ = ["WorstCase", "worst_case"]
 
@@ -102,6 +101,8 @@ def worst_case(model, X0, times, value, *, inputs=None, W=None, at: int = -1, it
     WorstCase
         The best trajectory found; for the smallest value, negate ``value``.
     """
+    from reachconf_kernels.adjoint import adjoint_sweep  # compiled on first use, not when reachconf.model is imported
+
     model = require_model(model, "worst_case")
     times = np.array(times, dtype=float).reshape(-1)
     if times.size < 2 or not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
