@@ -7,6 +7,7 @@ and final width, next to Flow* 2.1.0's CPU times measured on this machine type
     python benchmarks/bench_reach.py [--repeat 3] [--profile]
     python benchmarks/bench_reach.py --adaptive   # default-vs-tuned table (ReachOptions(): "adaptive")
     python benchmarks/bench_reach.py --adaptive-heldout   # the defaults on instances not used to tune them
+    python benchmarks/bench_reach.py --tightness   # the defaults' final boxes against the worst cases (rc.worst_case)
 
 The first run of a fresh checkout also compiles the kernels and models
 (printed separately as "warm-up"); the figures are for warm caches.
@@ -293,6 +294,30 @@ def bench_adaptive_heldout(repeat):
               f"{res.log.steps} steps, splits {res.splits}, budgets {[float(b) for b in res.log.budgets_tried]}")
 
 
+def bench_tightness():
+    """Each instance's default tube at its end against the worst case (``rc.worst_case``: a simulated trajectory).
+
+    Per state: the width of the final time-point set's box over the width the model really reaches (its largest
+    and smallest value found over X0 and W, an inner bound); 1.00 would be exact.
+    """
+    print(f"{'instance':30s} final box width / worst-case width per state (defaults; worst case: rc.worst_case)")
+    for name, model, X0, times, U, W, _, _ in adaptive_instances():
+        try:
+            tube = rc.reach(model, X0, times, inputs=U, W=W, options=ADAPTIVE)
+        except rc.ReachError as exc:
+            print(f"{name:30s} ReachError: {str(exc)[:120]}")
+            continue
+        grid = np.asarray(times, dtype=float) if np.ndim(times) else np.linspace(0.0, float(times), 701)
+        box = tube.final_set().interval()
+        ratios = []
+        for i in range(model.n):
+            e = np.eye(model.n)[i]
+            hi = rc.worst_case(model, X0, grid, e, inputs=U, W=W).value
+            lo = -rc.worst_case(model, X0, grid, -e, inputs=U, W=W).value
+            ratios.append((box.hi[i] - box.lo[i]) / max(hi - lo, 1e-300))
+        print(f"{name:30s} " + " ".join(f"{model.state_names[i]} {r:.2f}" for i, r in enumerate(ratios)))
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
@@ -301,11 +326,16 @@ def main(argv=None):
                         help="only the default-vs-tuned table (algorithm='adaptive' against the hand-tuned settings)")
     parser.add_argument("--adaptive-heldout", action="store_true",
                         help="only algorithm='adaptive' on instances not used to choose its rules")
+    parser.add_argument("--tightness", action="store_true",
+                        help="only the defaults' final boxes against the worst cases (rc.worst_case)")
     parser.add_argument("--search-lin", action="store_true",
                         help="try 60 hand-tuned 'lin' settings on the instances without one (about 15 min)")
     args = parser.parse_args(argv)
     if args.search_lin:
         search_lin()
+        return
+    if args.tightness:
+        bench_tightness()
         return
     if args.adaptive_heldout:
         bench_adaptive_heldout(args.repeat)
