@@ -90,6 +90,15 @@ def vdp_runs():
     return model, _simulate_many(model, VDP_X0, VDP_TIMES, None, None, 200, rng)
 
 
+@pytest.fixture(scope="module")
+def vdp_worst(vdp_runs):
+    """x and y driven furthest up and down from the corners of X0 at a third, two thirds and the end of the run."""
+    model, _ = vdp_runs
+    K = VDP_TIMES.size - 1
+    return _worst_runs(model, VDP_X0, VDP_TIMES, rc.Interval(np.zeros(0), np.zeros(0)), None, (0, 1),
+                       (K // 3, 2 * K // 3, K))[1]  # fmt: skip
+
+
 @pytest.mark.parametrize(
     "options",
     [
@@ -101,10 +110,11 @@ def vdp_runs():
     ],
     ids=["lin2", "lin3", "poly", "lin3-pca-coarse", "adaptive"],
 )
-def test_vanderpol_sound(vdp_runs, options):
+def test_vanderpol_sound(vdp_runs, vdp_worst, options):
     model, (X, td, Xd) = vdp_runs
     tube = rc.reach(model, VDP_X0, VDP_TIMES, options=options)
     _assert_tube_contains(tube, X, td, Xd)
+    _assert_tube_contains(tube, *vdp_worst)  # and 12 worst cases
     _assert_tight(tube, X)
 
 
