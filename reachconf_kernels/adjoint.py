@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit, types
 
 from reachconf_kernels.signatures import FN_POINT_MAT, f8_1, f8_2
-from reachconf_kernels.small_linalg import mat_mat
+from reachconf_kernels.small_linalg import mat_mat, mat_vec
 
 
 @njit(types.void(f8_2, f8_2, f8_2, f8_1, f8_1, FN_POINT_MAT, types.int64, f8_1, f8_2), cache=True)
@@ -55,18 +55,10 @@ def adjoint_sweep(X, U, Wt, dts, p, jac, substeps, lam, gw):
         P = eye + mat_mat(Ah, S)
         QB = mat_mat(S * h, np.ascontiguousarray(J[:, n + m :]))
         # over the substeps: lam <- P^T lam, and the disturbance collects (P^i Q B)^T lam
+        PT = np.ascontiguousarray(P.T)
+        QBT = np.ascontiguousarray(QB.T)
         g = np.zeros(q)
         for _ in range(substeps):
-            for j in range(q):
-                s = 0.0
-                for i in range(n):
-                    s += QB[i, j] * lam[i]
-                g[j] += s
-            new = np.zeros(n)
-            for j in range(n):
-                s = 0.0
-                for i in range(n):
-                    s += P[i, j] * lam[i]
-                new[j] = s
-            lam[:] = new
+            g += mat_vec(QBT, lam)
+            lam[:] = mat_vec(PT, lam)
         gw[k] = g
