@@ -15,7 +15,7 @@ from scipy.integrate import solve_ivp
 from reachconf.errors import DataError
 from reachconf_kernels.integrate import rk4_trace
 
-__all__ = ["simulate", "simulate_ivp"]
+__all__ = ["simulate", "simulate_ivp", "signal_table"]
 
 
 def _prepare(model, x0, times, inputs, disturbances):
@@ -27,23 +27,29 @@ def _prepare(model, x0, times, inputs, disturbances):
     if x0.shape != (model.n,) or not np.all(np.isfinite(x0)):
         raise DataError(f"x0 must be {model.n} finite values ({model.state_names}), got {np.shape(x0)}")
 
-    def table(value, width, name):
-        if width == 0:
-            return np.zeros((K, 0))
-        if value is None:
-            return np.zeros((K, width))
-        arr = np.asarray(value, dtype=float)
-        if arr.ndim == 1 and arr.size == width:
-            arr = np.tile(arr, (K, 1))
-        if arr.ndim != 2 or arr.shape[1] != width or arr.shape[0] not in (K, K - 1):
-            raise DataError(f"{name} must have shape ({K}, {width}) or ({K - 1}, {width}), got {arr.shape}")
-        if not np.all(np.isfinite(arr)):
-            raise DataError(f"{name} contains NaN or inf")
-        if arr.shape[0] == K - 1:
-            arr = np.vstack([arr, arr[-1:]])
-        return np.array(arr, order="C")  # writeable copy for the compiled kernels
+    return x0, times, signal_table(inputs, K, model.m, "inputs"), signal_table(disturbances, K, model.q, "disturbances")
 
-    return x0, times, table(inputs, model.m, "inputs"), table(disturbances, model.q, "disturbances")
+
+def signal_table(value, K: int, width: int, name: str) -> np.ndarray:
+    """``value`` as a ``(K, width)`` table of one row per sample time (a writeable C-ordered copy).
+
+    ``None`` is zeros; a single row of ``width`` values is held; ``K - 1`` rows (one per interval) get the last
+    row repeated.  :class:`DataError` naming ``name`` for another shape or NaN/inf.
+    """
+    if width == 0:
+        return np.zeros((K, 0))
+    if value is None:
+        return np.zeros((K, width))
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 1 and arr.size == width:
+        arr = np.tile(arr, (K, 1))
+    if arr.ndim != 2 or arr.shape[1] != width or arr.shape[0] not in (K, K - 1):
+        raise DataError(f"{name} must have shape ({K}, {width}) or ({K - 1}, {width}), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise DataError(f"{name} contains NaN or inf")
+    if arr.shape[0] == K - 1:
+        arr = np.vstack([arr, arr[-1:]])
+    return np.array(arr, order="C")  # writeable copy for the compiled kernels
 
 
 def simulate(model, x0, times, inputs=None, disturbances=None, substeps: int = 10, *, error_estimate: bool = False,

@@ -25,9 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from reachconf.checks import value_has_type
 from reachconf.errors import DataError, OptionsError
 from reachconf.model.core import require_model
-from reachconf.model.simulate import simulate
+from reachconf.model.simulate import signal_table, simulate
 from reachconf.sets import as_box
 
 __all__ = ["WorstCase", "worst_case"]
@@ -56,19 +57,6 @@ class WorstCase:
     disturbances: np.ndarray
     states: np.ndarray
     iterations: int
-
-
-def _table(inputs, K: int, m: int) -> np.ndarray:
-    if m == 0:
-        return np.zeros((K, 0))
-    arr = np.zeros((K, m)) if inputs is None else np.asarray(inputs, dtype=float)
-    if arr.ndim == 1 and arr.size == m:
-        arr = np.tile(arr, (K, 1))
-    if arr.ndim != 2 or arr.shape[1] != m or arr.shape[0] not in (K, K - 1):
-        raise DataError(f"worst_case: inputs must have shape ({K}, {m}) or ({K - 1}, {m}), got {arr.shape}")
-    if arr.shape[0] == K - 1:
-        arr = np.vstack([arr, arr[-1:]])
-    return np.ascontiguousarray(arr)
 
 
 def worst_case(model, X0, times, value, *, inputs=None, W=None, at: int = -1, iterations: int = 25,
@@ -107,10 +95,13 @@ def worst_case(model, X0, times, value, *, inputs=None, W=None, at: int = -1, it
     times = np.array(times, dtype=float).reshape(-1)
     if times.size < 2 or not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
         raise DataError("worst_case: times must be finite, strictly increasing, with at least two entries")
-    k_at = int(at) % times.size if -times.size <= int(at) < times.size else -1
+    for name, v in (("at", at), ("iterations", iterations), ("substeps", substeps)):
+        if not value_has_type(v, int):
+            raise OptionsError(f"worst_case: {name} must be an integer, got {v!r}")
+    k_at = at % times.size if -times.size <= at < times.size else -1
     if k_at < 1:
         raise OptionsError(f"worst_case: at = {at} must name a sample time after the first of {times.size}")
-    if int(iterations) < 1 or int(substeps) < 1:
+    if iterations < 1 or substeps < 1:
         raise OptionsError(f"worst_case: iterations and substeps must be positive, got {iterations}, {substeps}")
     n, m, q = model.n, model.m, model.q
     box0 = as_box(X0, n, "X0")
@@ -121,22 +112,28 @@ def worst_case(model, X0, times, value, *, inputs=None, W=None, at: int = -1, it
         weights = np.asarray(value, dtype=float).reshape(-1)
         if weights.size != n or not np.all(np.isfinite(weights)):
             raise DataError(f"worst_case: value must be a callable or {n} finite weights, got {np.shape(value)}")
-        fn = lambda x, u: float(weights @ x)  # noqa: E731
+        fn = lambda x, u: weights @ x  # noqa: E731
     t = times[: k_at + 1]
-    U = _table(inputs, times.size, m)[: k_at + 1]
+    U = signal_table(inputs, times.size, m, "worst_case: inputs")[: k_at + 1]
     dts = np.diff(t)
     c, r = Wb.center, Wb.radius
     xc, xr = box0.center, box0.radius
     jac, p = model.compiled().jac, np.ascontiguousarray(model.param_vector, dtype=float)
 
+    def evaluate(x, u):
+        try:
+            return float(np.asarray(fn(x, u), dtype=float).reshape(()))
+        except (TypeError, ValueError):
+            raise DataError(f"worst_case: value(x, u) must return one number, got {fn(x, u)!r}"[:200]) from None
+
     def run(x0, w):
-        X = simulate(model, x0, t, inputs=U, disturbances=w, substeps=int(substeps), check=False)
-        return X, (float(fn(X[-1], U[-1])) if np.all(np.isfinite(X)) else -np.inf)
+        X = simulate(model, x0, t, inputs=U, disturbances=w, substeps=substeps, check=False)
+        return X, (evaluate(X[-1], U[-1]) if np.all(np.isfinite(X)) else -np.inf)
 
     def gradient(x, u):
-        v0 = float(fn(x, u))
+        v0 = evaluate(x, u)
         h = 1e-6 * np.maximum(1.0, np.abs(x))
-        return np.array([(float(fn(x + h[i] * e, u)) - v0) / h[i] for i, e in enumerate(np.eye(n))])
+        return np.array([(evaluate(x + h[i] * e, u) - v0) / h[i] for i, e in enumerate(np.eye(n))])
 
     w, x0 = np.tile(c, (k_at, 1)), xc.copy()
     X, best = run(x0, w)
@@ -144,9 +141,9 @@ def worst_case(model, X0, times, value, *, inputs=None, W=None, at: int = -1, it
         raise DataError("worst_case: the simulation from the centres of X0 and W is not finite")
     gw = np.empty((k_at, q))
     done = 0
-    for done in range(1, int(iterations) + 1):
+    for done in range(1, iterations + 1):
         lam = gradient(X[-1], U[-1])
-        adjoint_sweep(np.ascontiguousarray(X), U, np.ascontiguousarray(w), dts, p, jac, int(substeps), lam, gw)
+        adjoint_sweep(np.ascontiguousarray(X), U, np.ascontiguousarray(w), dts, p, jac, substeps, lam, gw)
         target_w, target_x0 = c + r * np.sign(gw), xc + xr * np.sign(lam)
         for step in (1.0, 0.5, 0.25, 0.1, 0.03):
             wn, xn = w + step * (target_w - w), x0 + step * (target_x0 - x0)

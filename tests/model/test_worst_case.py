@@ -96,3 +96,14 @@ def test_worst_case_bad_arguments():
         rc.worst_case("model", X0, TIMES, [1, 0, 0])
     with pytest.raises(rc.OptionsError, match="iterations"):
         rc.worst_case(model, X0, TIMES, [1, 0, 0], W=W, iterations=0)
+    for kw in ({"at": 2.5}, {"at": True}, {"substeps": 1.0}):
+        with pytest.raises(rc.OptionsError, match="must be an integer"):
+            rc.worst_case(model, X0, TIMES, [1, 0, 0], W=W, **kw)
+    with pytest.raises(rc.DataError, match="must return one number"):
+        rc.worst_case(model, X0, TIMES, lambda x, u: x, W=W)
+    with pytest.raises(rc.DataError, match="inputs contains NaN"):
+        rc.worst_case(rc.models.diff_drive(), rc.Interval([0, 0, 0], [0.1, 0.1, 0.1]), TIMES, [1, 0, 0],
+                      inputs=np.full((TIMES.size, 2), np.nan))
+    with pytest.raises(rc.DataError, match="inputs must have shape"):
+        rc.worst_case(rc.models.diff_drive(), rc.Interval([0, 0, 0], [0.1, 0.1, 0.1]), TIMES, [1, 0, 0],
+                      inputs=np.ones((3, 2)))
