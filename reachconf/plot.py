@@ -148,8 +148,15 @@ class VerdictSummary:
     @classmethod
     def from_dict(cls, d: dict):
         """The summary if ``d`` is a ``conformance.json`` of ``reachconf conform``, else None."""
-        ok = bool(d) and all(isinstance(e, dict) and e and set(e) <= set(cls.KINDS)
-                             and all(isinstance(v, dict) and v.get("verdict") in cls.COLORS for v in e.values())
+        def number(v):
+            return v is None or (isinstance(v, (int, float)) and not isinstance(v, bool))
+
+        def entry(v):  # a verdict, and the margins or first violation _detail reads
+            return (isinstance(v, dict) and v.get("verdict") in cls.COLORS
+                    and isinstance(v.get("margins", {}), dict) and all(map(number, v.get("margins", {}).values()))
+                    and number(v.get("first_violation_time")))  # fmt: skip
+
+        ok = bool(d) and all(isinstance(e, dict) and e and set(e) <= set(cls.KINDS) and all(map(entry, e.values()))
                              for e in d.values())  # fmt: skip
         return cls(d) if ok else None
 

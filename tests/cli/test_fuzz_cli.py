@@ -178,5 +178,10 @@ def test_plot_of_a_conformance_summary(tmp_path):
     assert len(ax.patches) == 3
     assert cli.main(["plot", str(tmp_path / "conformance.json")]) == 0
     assert (tmp_path / "conformance.png").stat().st_size > 1000
-    for bad in ({"a": {"trace": {"verdict": "maybe"}}}, {"a": {"other": {"verdict": "conformant"}}}):
+    for bad in ({"a": {"trace": {"verdict": "maybe"}}}, {"a": {"other": {"verdict": "conformant"}}},
+                {"a": {"trace": {"verdict": "conformant", "margins": "w1"}}},
+                {"a": {"trace": {"verdict": "conformant", "margins": {"w1": "x"}}}},
+                {"a": {"reachset": {"verdict": "not_conformant", "first_violation_time": "soon"}}}):
         assert VerdictSummary.from_dict(bad) is None
+        (tmp_path / "bad.json").write_text(json.dumps(bad))  # one line, status 2, no picture
+        assert cli.main(["plot", str(tmp_path / "bad.json")]) == 2 and not (tmp_path / "bad.png").exists()
