@@ -31,7 +31,6 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-
 from reachconf.checks import check_workers
 from reachconf.conformance.synthesis import SynthesisOptions
 from reachconf.conformance.trace import METHODS, TraceOptions
