@@ -73,10 +73,16 @@ class _Run:
         self.undecided = False
 
 
-def _select_cases(spec, args):
-    from reachconf.runfile import select_cases
+def _select_cases(spec, args, segments=True):
+    """The run's cases (``--case``), cut into segments by ``--segment-length`` or the file's ``segment_length``."""
+    from reachconf.runfile import check_segment_length, select_cases
 
-    return select_cases(spec.suite(), getattr(args, "case", None), spec.suite_path)
+    suite = select_cases(spec.suite(), getattr(args, "case", None), spec.suite_path)
+    length = getattr(args, "segment_length", None)
+    if length is not None:
+        length = check_segment_length(length, "--segment-length", spec.X0)
+    length = length if length is not None else spec.segment_length
+    return suite.segments(length) if segments and length is not None else suite
 
 
 def _load(args):
@@ -284,7 +290,7 @@ def cmd_diagnose(args, run):
     from reachconf.runner.pool import progress_shown
 
     spec = _load(args)
-    suite = _select_cases(spec, args)
+    suite = _select_cases(spec, args, segments=False)
     kwargs = diagnose_settings(spec, cases=getattr(args, "case", None))
     report = diagnose(spec.model, suite, V=spec.V, progress=progress_shown(), **kwargs)  # no bar in a log file
     if args.json:
@@ -324,6 +330,10 @@ def build_parser() -> argparse.ArgumentParser:
             add_pool_options(sp, commands.positive_int)
         sp.add_argument("--time-limit", type=positive_seconds, default=None, dest="time_limit",
                         help="seconds per case and kind; a run projected to take longer stops after its first part")  # fmt: skip
+        if run and pool:
+            sp.add_argument("--segment-length", type=positive_seconds, default=None, dest="segment_length",
+                            help="check consecutive segments of this many seconds of each case, each from its "
+                                 "own first sample (overrides the run file's segment_length)")  # fmt: skip
 
     sp = sub.add_parser("demo", help="run the main job on the shipped example suite")
     common(sp, run=False)

@@ -4,6 +4,7 @@ Example::
 
     model = "bicycle_closed_loop"      # built-in name or "package.module:attribute"
     suite = "suite"                    # folder, relative to this file
+    segment_length = 2.0               # optional: cut the cases into segments of this many seconds
     [params]                           # optional parameter overrides
     c_f = 9.7
     [sets]                             # intervals as [lo, hi] per channel, in the model's order
@@ -21,11 +22,17 @@ Example::
     holdout = 0.3
     fit_params = ["J_m", "c_f"]        # or true / false
     window = 1.0
+
+``segment_length`` (seconds; :meth:`reachconf.io.TestCase.segments`) makes ``reach``, ``conform``,
+``synth`` and ``pareto`` check every consecutive stretch of that length from its own first sample (eq. 67)
+instead of each whole case: the shorter horizons of the report's section 4.3.3, for recordings too long for
+one reach.  It needs eq. 67's initial sets (no ``[sets] X0``); ``diagnose`` ignores it.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import tomllib
 from dataclasses import dataclass
@@ -43,9 +50,10 @@ from reachconf.models import get_model
 from reachconf.reach_options import ReachOptions
 from reachconf.sets.core import Interval
 
-__all__ = ["RunSpec", "load_run", "resolve_model", "diagnose_settings", "select_cases", "input_paths"]
+__all__ = ["RunSpec", "load_run", "resolve_model", "diagnose_settings", "select_cases", "input_paths",
+           "check_segment_length"]  # fmt: skip
 
-_KEYS = {"model", "suite", "params", "sets", "reach", "trace", "synthesis", "description", "workers", "diagnose"}
+_KEYS = {"model", "suite", "segment_length", "params", "sets", "reach", "trace", "synthesis", "description", "workers", "diagnose"}
 
 
 @dataclass
@@ -64,6 +72,7 @@ class RunSpec:
     synthesis_options: object
     workers: int | None
     raw: dict
+    segment_length: float | None = None
 
     def suite(self):
         """The test suite the run file names (loaded with the model's signal names)."""
@@ -202,7 +211,22 @@ def load_run(path) -> RunSpec:
     except ReachconfError as exc:
         raise DataError(f"{path}: {exc}") from None
     _table(raw, "diagnose", str(path))
-    return RunSpec(path, model, suite_path, W, V, X0, reach_opts, method, trace_opts, synth_opts, workers, raw)
+    length = raw.get("segment_length")
+    if length is not None:
+        length = check_segment_length(length, f"{path}: segment_length", X0)
+    return RunSpec(path, model, suite_path, W, V, X0, reach_opts, method, trace_opts, synth_opts, workers, raw,
+                   length)  # fmt: skip
+
+
+def check_segment_length(value, where: str, X0=None) -> float:
+    """``value`` as a segment length in seconds (positive, finite); a DataError naming ``where`` if not, or
+    if an explicit initial set ``X0`` is given too (it would start every segment from the same set)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise DataError(f"{where} must be a positive number of seconds, got {value!r}")
+    if X0 is not None:
+        raise DataError(f"{where}: segments start from their own first sample (eq. 67); [sets] X0 would start "
+                        f"every segment from the same set — remove one of the two")  # fmt: skip
+    return float(value)
 
 
 def input_paths(path) -> tuple[list, list]:

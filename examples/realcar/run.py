@@ -87,9 +87,7 @@ def windows(suite, seconds=WINDOW_SECONDS) -> TestSuite:
     """The cases cut into ``seconds``-long windows, grouped by the |ay| band of each window's peak |ay|."""
     out = []
     for case in suite:
-        t = case.t
-        for a in np.arange(t[0], t[-1] - seconds + 1e-6, seconds):
-            w = case.segment(a - 1e-9, a + seconds + 1e-9)
+        for w in case.segments(seconds, partial=False):
             peak = float(np.max(np.abs(w.extras["ay"])))
             lo, hi = next(b for b in BANDS if b[0] <= peak < b[1])
             out.append(type(w)(w.name, band_label(lo, hi), w.t, w.U, w.Y, w.input_names, w.output_names, w.extras))
@@ -152,8 +150,8 @@ def plot_stretch(model, case, W_of, V, path, title):
 
     plt = _pyplot()
     fig, axes = plt.subplots(2, 1, figsize=(10, 5.5), sharex=True)
-    for a in np.arange(case.t[0], case.t[-1] - WINDOW_SECONDS + 1e-6, WINDOW_SECONDS):
-        win = case.segment(a - 1e-9, a + WINDOW_SECONDS + 1e-9)
+    for win in case.segments(WINDOW_SECONDS, partial=False):
+        a = win.t[0]
         r = reachset_conformance(model, win, W_of(win), V, progress=False)
         if r.tube is None:  # the reach failed (undecided): nothing to draw for this window
             continue

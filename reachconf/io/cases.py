@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -187,6 +188,60 @@ class TestCase:
         return TestCase(f"{self.name}[{t0:g},{t1:g}]", self.group, self.t[keep], self.U[keep], self.Y[keep],
                         self.input_names, self.output_names, {k: v[keep] for k, v in self.extras.items()})  # fmt: skip
 
+    def segments(self, length: float, partial: bool = True) -> list:
+        """The case cut into consecutive segments of ``length`` seconds (section 4.3.3's shorter horizons).
+
+        Segment ``k`` holds the samples with ``t0 + k length <= t <= t0 + (k + 1) length``, so consecutive
+        segments share the sample on their boundary and every sample lies in a segment; each is checked
+        from its own first sample (eq. 67), as a test case of its own.  The report proposes this for long
+        maneuvers ("reduce the horizons of the measurement data and search for conformant models on
+        smaller segments within maneuvers"): a reach over a few seconds stays tight where one over a whole
+        run explodes, at the price of a weaker claim — conformance over every ``length``-second stretch
+        started from a measured state, not over the whole run.
+
+        Parameters
+        ----------
+        length : float
+            Segment length (s), positive and finite.
+        partial : bool, default True
+            Keep the last segment when it is shorter than ``length`` (False: drop it; its samples are
+            then in no segment).
+
+        Returns
+        -------
+        list of TestCase
+            Named ``"{name}[{t_first:g},{t_last:g}]"`` by their first and last sample times, in the case's
+            group.  A case no longer than ``length`` gives itself (one segment, same name).
+        """
+        try:
+            length = float(length)
+        except (TypeError, ValueError):
+            raise DataError(f"test case {self.name!r}: segment length must be a number of seconds, "
+                            f"got {length!r}") from None  # fmt: skip
+        if not (math.isfinite(length) and length > 0):
+            raise DataError(f"test case {self.name!r}: segment length must be a positive number of seconds, "
+                            f"got {length!r}")  # fmt: skip
+        t = self.t
+        tol = 1e-9 * max(1.0, abs(float(t[-1])), length)
+        if t[-1] - t[0] <= length + tol:
+            return [self]
+        out = []
+        starts = t[0] + length * np.arange(int(np.floor((t[-1] - t[0] + tol) / length)) + 1)
+        for a in starts:
+            keep = (t >= a - tol) & (t <= a + length + tol)
+            if keep.sum() < 2:
+                continue
+            full = a + length <= t[-1] + tol
+            if not full and not partial:
+                break
+            first, last = np.flatnonzero(keep)[[0, -1]]
+            if out and last <= out[-1][1]:  # a tail within the last full segment adds nothing
+                continue
+            out.append((first, last))
+        return [TestCase(f"{self.name}[{t[i]:g},{t[j]:g}]", self.group, t[i:j + 1], self.U[i:j + 1],
+                         self.Y[i:j + 1], self.input_names, self.output_names,
+                         {k: v[i:j + 1] for k, v in self.extras.items()}) for i, j in out]  # fmt: skip
+
     def decimate(self, k: int) -> "TestCase":
         """Every ``k``-th sample (inputs stay piecewise constant on the coarser grid)."""
         k = int(k)
@@ -354,6 +409,10 @@ class TestSuite:
     def filter(self, predicate) -> "TestSuite":
         """The cases for which ``predicate(case)`` is true, as a suite."""
         return TestSuite([c for c in self.cases if predicate(c)], name=self.name)
+
+    def segments(self, length: float, partial: bool = True) -> "TestSuite":
+        """Every case cut into segments of ``length`` seconds (:meth:`TestCase.segments`), as a suite."""
+        return TestSuite([s for c in self.cases for s in c.segments(length, partial)], name=self.name)
 
     def map(self, fn) -> "TestSuite":
         """``fn`` applied to every case, as a suite."""

@@ -58,6 +58,45 @@ def test_conform_reach_synth_plot(tmp_path, run_copy):
     assert run("plot", out / "s.json", "--out", out).returncode == 0
 
 
+def test_segment_length_checks_every_segment(tmp_path, run_copy):
+    """``--segment-length`` / ``segment_length``: each stretch of a case is a case of its own, from its first sample.
+
+    The demo data were made with the run file's W and noise inside V, so every segment is conformant."""
+    out = tmp_path / "out"
+    proc = run("conform", run_copy, "--case", "lane_change_02", "--segment-length", "1", "--json", out / "c.json",
+               "--workers", "1")  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    verdicts = json.loads((out / "c.json").read_text())
+    assert list(verdicts) == [f"lane_change_02[{a},{a + 1}]" for a in range(4)]
+    assert all(v["reachset"]["conformant"] is True and v["trace"]["conformant"] is True for v in verdicts.values())
+    run_copy.write_text(run_copy.read_text().replace('suite = "suite"', 'suite = "suite"\nsegment_length = 2.5'))
+    proc = run("conform", run_copy, "--case", "lane_change_01", "--kind", "trace", "--json", out / "d.json")
+    assert proc.returncode == 0, proc.stderr
+    assert list(json.loads((out / "d.json").read_text())) == ["lane_change_01[0,2.5]", "lane_change_01[2.5,4]"]
+
+
+@pytest.mark.parametrize(
+    "edit, args, message",
+    [
+        (lambda t: t.replace('suite = "suite"', 'suite = "suite"\nsegment_length = -1'), (),
+         "segment_length must be a positive number of seconds"),
+        (lambda t: t.replace('suite = "suite"', 'suite = "suite"\nsegment_length = "2 s"'), (),
+         "segment_length must be a positive number of seconds"),
+        (lambda t: t.replace("[sets]\n", "[sets]\nX0 = [[0, 0], [0, 0], [0, 0], [10, 10], [0, 0], [0, 0]]\n"),
+         ("--segment-length", "1"),
+         "--segment-length: segments start from their own first sample"),
+        (lambda t: t, ("--segment-length", "0"), "must be a positive, finite number of seconds"),
+    ],
+)
+def test_bad_segment_lengths_are_one_line_errors(run_copy, edit, args, message):
+    run_copy.write_text(edit(run_copy.read_text()))
+    proc = run("conform", run_copy, "--kind", "trace", *args)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("reachconf: error:"), proc.stderr
+    assert message in lines[0]
+
+
 @pytest.mark.parametrize(
     "edit, message",
     [
