@@ -28,8 +28,13 @@ identified as in ``run.py`` (step 1; ``--params``: taken from its
    (bang-bang disturbances from the adjoint of the linearised trajectory,
    iterated on the model until no step improves), against the reach's
    range: does the model's *true* reachable set explode, or only the reach?
+8. the runs cut into segments of ``--segment-lengths`` seconds
+   (:meth:`reachconf.io.TestCase.segments`, the report's section 4.3.3),
+   each checked from its own first sample: the synthesis per segment and
+   merged over all the runs' segments, and how far the segments' own
+   ``W_opt`` centres move from one segment to the next.
 
-Prints the findings and writes them to ``--out`` (JSON).  Measured: 27 s wall for two runs with ``--params`` (item 7
+Prints the findings and writes them to ``--out`` (JSON: ``{"runs": [one dict per run], "segments": item 8}``).  Measured: 27 s wall for two runs with ``--params`` (item 7
 included, warm caches).
 """
 
@@ -39,6 +44,7 @@ import argparse
 import importlib.util
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -197,6 +203,39 @@ def diagnose(name, suite, built, steering, count):
     return out
 
 
+def segmented(model, suite, names, lengths):
+    """Item 8: the synthesis on the runs' segments of each length (all the runs' segments as one group)."""
+    from reachconf.conformance.synthesis import synthesize_W
+    from reachconf.io import TestSuite
+
+    cases = [c.select(R.REF, model.output_names) for c in suite if c.name in names]
+    V = R.box(R.V_TABLE6)
+    sopts = rc.SynthesisOptions(alpha_iterations=8, merge_iterations=6, alpha_max=4.0, reach=R.REACH_TABLE6_FAST,
+                                reach_fallback=R.REACH_TABLE6)  # fmt: skip
+    out = {}
+    for length in lengths:
+        segs = TestSuite([s for c in cases for s in c.segments(length)], name="segments")
+        segs = segs.map(lambda s: replace(s, group="DLC_4"))
+        res = synthesize_W(model, segs, V, sopts, progress=False)
+        centres = np.array([c.W_opt.center for c in res.cases.values()])
+        out[str(length)] = {"segments": len(segs), "conformant_alone": sum(c.conformant for c in res.cases.values()),
+                            "merged": res.group_verdict["DLC_4"].value, "merged_alpha": res.group_alpha["DLC_4"],
+                            "merged_W": R.pairs(res.groups["DLC_4"]),
+                            "W_opt_centres": [[round(float(a), 3), round(float(b), 3)]
+                                              for a, b in zip(centres.min(0), centres.max(0))]}  # fmt: skip
+    return out
+
+
+def report_segments(seg, names) -> str:
+    """Item 8 as text."""
+    lines = ["segments (all runs' segments one group; each from its own first sample):"]
+    for length, r in seg.items():
+        lines.append(f"  {float(length):g} s: {r['conformant_alone']}/{r['segments']} conformant alone, merged "
+                     f"{r['merged']} (alpha {r['merged_alpha']:.3g}); the segments' W_opt centres range over "
+                     + ", ".join(f"{n} [{a:.2g}, {b:.2g}]" for n, (a, b) in zip(names, r["W_opt_centres"])))
+    return "\n".join(lines)
+
+
 def report(d, names) -> str:
     """The findings of one run as text."""
     fails = (lambda v: "reaches the end" if v is None else f"fails at t = {v:.2f} s")  # noqa: E731
@@ -232,6 +271,7 @@ def main(argv=None):
     ap.add_argument("--samples", type=int, default=100, help="simulated trajectories per run")
     ap.add_argument("--out", default=None, help="JSON file for the findings")
     ap.add_argument("--params", default=None, help="run.py's vehicle.json: its identified parameters")
+    ap.add_argument("--segment-lengths", default="0.5,1,2", help="item 8: comma-separated segment lengths (s)")
     args = ap.parse_args(argv)
     from reachconf.io import atomic_write
 
@@ -247,8 +287,11 @@ def main(argv=None):
             d = diagnose(name, suite, built, args.steering, args.samples)
             print(report(d, built[args.steering].state_names), flush=True)
             found.append(d)
+        model = built[args.steering]
+        seg = segmented(model, suite, names, [float(x) for x in args.segment_lengths.split(",") if x])
+        print(report_segments(seg, model.disturbance_names), flush=True)
         if args.out:
-            atomic_write(Path(args.out), json.dumps(found, indent=1))
+            atomic_write(Path(args.out), json.dumps({"runs": found, "segments": seg}, indent=1))
     except (rc.ReachconfError, OSError, json.JSONDecodeError) as exc:
         print(f"dlc4: error: {exc}", file=sys.stderr)
         return 2

@@ -157,7 +157,8 @@ def test_dlc4_diagnosis_on_a_quick_run(quick, tmp_path):
     found = tmp_path / "dlc4.json"
     assert dlc4.main(["--campaign", str(out / "campaign_quick"), "--runs", "LC_2_1", "--samples", "8",
                       "--params", str(out / "vehicle.json"), "--out", str(found)]) == 0  # fmt: skip
-    (d,) = json.loads(found.read_text())
+    result = json.loads(found.read_text())
+    (d,) = result["runs"]
     assert d["run"] == "LC_2_1" and d["trace_conformant"] and len(d["W_opt"]) == 6
     assert set(d["reach"]) == {"order 2", "order 3", "adaptive"} and set(d["alpha"]) == {"0.1", "0.25", "0.5", "1.0"}
     assert list(d["channels"]) == ["w1", "w2", "w3", "w4", "w5", "w6"]
@@ -173,6 +174,13 @@ def test_dlc4_diagnosis_on_a_quick_run(quick, tmp_path):
         for label in ("delta", "omega", "tanh argument"):
             (lo, hi), (rlo, rhi) = row[label], row[label + " reach"]
             assert lo <= hi and rlo <= lo + 1e-6 and hi <= rhi + 1e-6
+    # item 8: the gentle lane change is conformant on segments of every length, alone and merged
+    seg = result["segments"]
+    assert set(seg) == {"0.5", "1.0", "2.0"}
+    duration = 4.0  # QUICK["horizon"]
+    for length, r in seg.items():
+        assert r["segments"] == int(np.ceil(duration / float(length) - 1e-9))
+        assert r["conformant_alone"] == r["segments"] and r["merged"] == "conformant" and len(r["merged_W"]) == 6
 
 
 def test_dlc4_bad_input_is_one_line_and_exit_2(quick, tmp_path, capsys):
