@@ -72,6 +72,11 @@ def check_signals(where: str, t, U, Y, input_names, output_names, first_row: int
     return t, U, Y
 
 
+def _time_label(t: float) -> str:
+    """A sample time in a segment's name: to the microsecond, without trailing zeros (``2``, ``149.99``)."""
+    return np.format_float_positional(float(t), precision=6, unique=False, fractional=True, trim="-")
+
+
 def _frozen(arr: np.ndarray) -> np.ndarray:
     if arr.flags.writeable:
         arr = arr.copy()
@@ -210,8 +215,8 @@ class TestCase:
         Returns
         -------
         list of TestCase
-            Named ``"{name}[{t_first:g},{t_last:g}]"`` by their first and last sample times, in the case's
-            group.  A case no longer than ``length`` gives itself (one segment, same name).
+            Named ``"{name}[{t_first},{t_last}]"`` by their first and last sample times (to the microsecond,
+            trailing zeros dropped: ``run[2,4]``, ``run[1700000000.25,1700000002.25]``), in the case's group.  A case no longer than ``length`` gives itself (one segment, same name).
         """
         try:
             length = float(length)
@@ -222,7 +227,8 @@ class TestCase:
             raise DataError(f"test case {self.name!r}: segment length must be a positive number of seconds, "
                             f"got {length!r}")  # fmt: skip
         t = self.t
-        tol = 1e-9 * max(1.0, abs(float(t[-1])), length)
+        # a sample on a boundary belongs to both segments despite rounding (of t0 + k length and of large stamps)
+        tol = 1e-9 * max(1.0, length) + 8 * np.finfo(float).eps * max(abs(float(t[0])), abs(float(t[-1])))
         if t[-1] - t[0] <= length + tol:
             return [self]
         out = []
@@ -238,7 +244,7 @@ class TestCase:
             if out and last <= out[-1][1]:  # a tail within the last full segment adds nothing
                 continue
             out.append((first, last))
-        return [TestCase(f"{self.name}[{t[i]:g},{t[j]:g}]", self.group, t[i:j + 1], self.U[i:j + 1],
+        return [TestCase(f"{self.name}[{_time_label(t[i])},{_time_label(t[j])}]", self.group, t[i:j + 1], self.U[i:j + 1],
                          self.Y[i:j + 1], self.input_names, self.output_names,
                          {k: v[i:j + 1] for k, v in self.extras.items()}) for i, j in out]  # fmt: skip
 

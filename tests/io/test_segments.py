@@ -24,7 +24,8 @@ def test_segments_cover_every_sample_and_share_boundaries(length, t0):
         assert a.t[-1] == b.t[0]  # consecutive segments share their boundary sample
         assert a.duration == pytest.approx(length, abs=0.011)
     for s in segs:
-        assert s.group == "G" and s.name == f"run[{s.t[0]:g},{s.t[-1]:g}]"
+        label = [np.format_float_positional(x, precision=6, unique=False, trim="-") for x in (s.t[0], s.t[-1])]
+        assert s.group == "G" and s.name == f"run[{label[0]},{label[1]}]"
         i = int(np.searchsorted(case.t, s.t[0]))
         k = s.t.size
         assert np.array_equal(s.U, case.U[i:i + k]) and np.array_equal(s.Y, case.Y[i:i + k])
@@ -48,6 +49,14 @@ def test_a_short_case_is_its_own_segment_and_suites_segment_every_case():
     assert isinstance(segs, TestSuite) and segs.name == "S"
     assert [c.name for c in segs] == ["a[0,2]", "a[2,4]", "a[4,6]", "a[6,8]", "a[8,8.39]", "b[0,2]", "b[2,3]"]
     assert set(segs.groups()) == {"G", "H"}
+
+
+def test_segment_names_keep_their_times_apart_on_large_time_stamps():
+    """Unix-time stamps: names to the microsecond, so segments shorter than a second still get distinct names."""
+    case = _case(duration=3.0, dt=0.05, t0=1_700_000_000.0)
+    names = [s.name for s in case.segments(0.25)]
+    assert len(set(names)) == len(names) == 12
+    assert names[:2] == ["run[1700000000,1700000000.25]", "run[1700000000.25,1700000000.5]"]
 
 
 @pytest.mark.parametrize("bad", [0, -1.0, float("nan"), float("inf"), "two", None])
