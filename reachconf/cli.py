@@ -317,15 +317,17 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     """The ``argparse`` parser of the command line (usage errors: one line, status 2)."""
     p = _Parser(prog="reachconf", description="Reachability-based conformance checking.",
-                epilog="exit status: 0 done, 2 user error, 3 some verdict undecided, 130 interrupted")  # fmt: skip
+                epilog="exit status: 0 done, 1 internal error (a bug), 2 user error, 3 some verdict undecided, "
+                       "4 no worker left on the Dask cluster, 130 interrupted")  # fmt: skip
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    def common(sp, run=True, pool=True):
+    def common(sp, run=True, pool=True, out_required=False):
         if run:
             sp.add_argument("run", help="TOML run file (model, suite, sets, options)")
             sp.add_argument("--case", action="append", help="only this test case (repeatable)")
         sp.add_argument("--json", help="write machine-readable results to this file")
-        sp.add_argument("--out", help="folder for pictures and result files")
+        sp.add_argument("--out", required=out_required, help="folder for pictures and result files"
+                        + (" (required)" if out_required else ""))  # fmt: skip
         if pool:  # the diagnosis of one suite runs in this process: no worker options there
             add_pool_options(sp, commands.positive_int)
         sp.add_argument("--time-limit", type=positive_seconds, default=None, dest="time_limit",

@@ -95,6 +95,19 @@ def cmd_warmup(args, run):
     return 0
 
 
+#: more bisection steps than this cannot change a float64 bound (2**-60 of the range)
+MAX_BISECTION_STEPS = 60
+
+
+def bisection_steps(text):
+    """``--iterations``: an int in 1..MAX_BISECTION_STEPS (``argparse`` type; a one-line usage error otherwise)."""
+    value = positive_int(text)
+    if value > MAX_BISECTION_STEPS:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_BISECTION_STEPS} (a float64 bound cannot change "
+                                         f"after that many halvings), got {value}")  # fmt: skip
+    return value
+
+
 def positive_int(text):
     """An option's value as an int >= 1 (``argparse`` type; a one-line usage error otherwise)."""
     try:
@@ -113,9 +126,10 @@ def add_commands(sub, common, handlers):
     parsed arguments call (``args.fn``).
     """
     sp = sub.add_parser("pareto", help="Pareto front of conformant disturbance boxes (front.json, front.png)")
-    common(sp)
+    common(sp, out_required=True)
     sp.add_argument("--check", choices=("reachset", "trace"), default="reachset", help="conformance notion")
-    sp.add_argument("--iterations", type=positive_int, default=8, help="bisection steps per channel (default 8)")
+    sp.add_argument("--iterations", type=bisection_steps, default=8,
+                    help=f"bisection steps per channel, 1..{MAX_BISECTION_STEPS} (default 8)")  # fmt: skip
     sp.set_defaults(fn=handlers["pareto"])
     sp = sub.add_parser("warmup", help="build and compile models ahead of runs, here and on a Dask cluster's workers")
     sp.add_argument("targets", nargs="+", metavar="MODEL|RUN.toml", help="model names or run files")

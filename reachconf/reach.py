@@ -46,6 +46,9 @@ def sample_times(times) -> np.ndarray:
     """The sample times of ``times`` (a final time ``T``: ``[0, T]``), checked (:class:`ReachError` if bad)."""
     if np.iscomplexobj(times):
         raise ReachError(f"times must be real numbers, got {times!r}")
+    if isinstance(times, (str, bytes)) or (isinstance(times, np.ndarray) and times.dtype.kind in "USO"):
+        raise ReachError(f"times must be a final time or an array of sample times, got {times!r} "
+                         f"(numbers, not text)"[:200])  # fmt: skip
     try:  # a writeable copy: the compiled kernels take no read-only arrays (TestCase.t is one)
         arr = np.array(times, dtype=float)
     except (TypeError, ValueError):

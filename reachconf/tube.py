@@ -217,6 +217,8 @@ class ReachTube:
         for d in dims:
             if isinstance(d, str):
                 if d not in self.state_names:
+                    if d.strip().lstrip("+-").isdigit():  # an index given as text (the command line's --dims)
+                        raise SetError(f"dimension {d.strip()} out of range 0..{len(self.state_names) - 1}")
                     raise SetError(f"unknown state {d!r}; states are {self.state_names}")
                 idx.append(self.state_names.index(d))
             else:

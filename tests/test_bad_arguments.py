@@ -161,3 +161,18 @@ def test_containment_prints_a_summary():
 
     c = Containment(np.array([True, False, True] * 300), np.linspace(0, 9, 900), 1)
     assert repr(c) == "Containment(not conformant: 300 of 900 samples outside, first outside at t = 0.0100111 s)"
+
+
+def test_second_audit_of_27_nov():
+    """Times as text, a matrix as a box bound, a suite index past its end: reachconf errors naming the argument."""
+    with pytest.raises(rc.ReachError, match="times must be a final time or an array of sample times"):
+        rc.reach(vanderpol(), X0, "1")
+    with pytest.raises(rc.SetError, match="lo must be a vector, got an array of shape"):
+        rc.Interval(np.zeros((2, 2)), np.ones((2, 2)))
+    assert rc.Interval([[0.0], [1.0]], [[1.0], [2.0]]).dim == 2  # a column is a vector
+    suite = load_run(demo_run_file()).suite()
+    with pytest.raises(rc.DataError, match="has 3 cases: no case at index 10") as info:
+        suite[10]
+    assert isinstance(info.value, IndexError)
+    with pytest.raises(rc.DataError, match="index by position"):
+        suite[1.5]

@@ -349,7 +349,7 @@ def describe_violation(model, channel, margin, when, W_lo, W_hi, V_lo, V_hi) -> 
         i = list(model.output_names).index(name)
         rad = 0.5 * (V_hi[i] - V_lo[i])
         what = f"leaves V on output {name}"
-    rel = f" ({-margin / rad:.0%} of its half-width)" if np.isfinite(rad) and rad > 0 else ""
+    rel = f" ({-100 * margin / rad:.3g} % of its half-width)" if np.isfinite(rad) and rad > 0 else ""
     return f"{what} at t = {when:.4g} s by {-margin:.3g}{rel}"
 
 

@@ -32,6 +32,8 @@ def minimal_box(model, cases, V):
     """Hull of the per-case minimal W boxes (SCP of synthesis step 2, best effort: the base model may admit no
     trace at all), or None if the SCP fails."""
     los, his = [], []
+    if not cases:
+        return None
     try:
         for c in cases:
             r = case_box(model, c, V, "optctrl", "W", TraceOptions(), certify=False)
@@ -47,6 +49,8 @@ def measurement_box(model, cases):
     try:
         rs = [case_box(model, c, None, "perstep", "V", TraceOptions()) for c in cases]
     except (ReachconfError, np.linalg.LinAlgError, ValueError):
+        return None
+    if not rs:
         return None
     return np.min([r.lo for r in rs], axis=0), np.max([r.hi for r in rs], axis=0)
 
@@ -74,8 +78,9 @@ def decimated_cases(model, fit, cases, k, segment=None, substeps=None):
 
 
 def segments_of(c, segment):
-    """A case cut into pieces of ``segment`` seconds (the last one at least half as long); ``[c]`` for None."""
-    if segment is None:
+    """A case cut into pieces of ``segment`` seconds (the last one at least half as long); ``[c]`` for None
+    and for a case shorter than half a segment (taken whole)."""
+    if segment is None or c.t[-1] - c.t[0] < 0.5 * segment:
         return [c]
     out = []
     t0, t_end = float(c.t[0]), float(c.t[-1])

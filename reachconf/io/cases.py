@@ -353,6 +353,10 @@ class CaseNotFound(DataError, KeyError):
         return str(self.args[0]) if self.args else ""
 
 
+class CaseIndexError(DataError, IndexError):
+    """No test case at that position of a suite (an :class:`IndexError` too)."""
+
+
 class TestSuite:
     """An ordered collection of :class:`TestCase` (iterable, indexable by position or name)."""
 
@@ -389,7 +393,13 @@ class TestSuite:
                 if c.name == key:
                     return c
             raise CaseNotFound(f"test suite {self.name!r} has no case {key!r}; cases: {[c.name for c in self.cases]}")
-        return self.cases[key]
+        try:
+            return self.cases[key]
+        except IndexError:
+            raise CaseIndexError(f"test suite {self.name!r} has {len(self.cases)} cases: no case at index {key}") from None
+        except TypeError:
+            raise DataError(f"test suite {self.name!r}: index by position (int, slice) or case name (str), "
+                            f"got {key!r}") from None  # fmt: skip
 
     def groups(self) -> dict:
         """Group name -> list of cases, in order of first appearance."""

@@ -253,6 +253,8 @@ def save_suite(suite: TestSuite, path, fmt: str = "csv", replace: bool = False) 
     if fmt not in ("csv", "npz"):
         raise DataError(f"fmt must be 'csv' or 'npz', got {fmt!r}")
     folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise DataError(f"{folder}: is a file, not a folder: save_suite writes a folder of case files")
     first = suite[0]
     for case in suite:
         if case.input_names != first.input_names or case.output_names != first.output_names:
@@ -264,7 +266,10 @@ def save_suite(suite: TestSuite, path, fmt: str = "csv", replace: bool = False) 
         shown = ", ".join(p.name for p in stale[:5]) + (f" and {len(stale) - 5} more" if len(stale) > 5 else "")
         raise DataError(f"{folder}: holds test case files that are not in suite {suite.name!r} ({shown}); "
                         "load_suite would read them as part of it: save into an empty folder or pass replace=True")  # fmt: skip
-    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DataError(f"{folder}: cannot create the suite folder: {exc.strerror or exc}") from None
     for case in suite:
         save_case(case, folder / f"{case.name}.{fmt}")
     for p in stale:

@@ -122,9 +122,13 @@ def worst_case(model, X0, times, value, *, inputs=None, W=None, at: int = -1, it
 
     def evaluate(x, u):
         try:
-            return float(np.asarray(fn(x, u), dtype=float).reshape(()))
+            got = fn(x, u)
+        except (TypeError, ValueError) as exc:  # its own error, e.g. a callable of one argument
+            raise DataError(f"worst_case: value(x, u) failed: {type(exc).__name__}: {exc}"[:300]) from None
+        try:
+            return float(np.asarray(got, dtype=float).reshape(()))
         except (TypeError, ValueError):
-            raise DataError(f"worst_case: value(x, u) must return one number, got {fn(x, u)!r}"[:200]) from None
+            raise DataError(f"worst_case: value(x, u) must return one number, got {got!r}"[:200]) from None
 
     def run(x0, w):
         X = simulate(model, x0, t, inputs=U, disturbances=w, substeps=substeps, check=False)

@@ -14,7 +14,7 @@ import numpy as np
 from reachconf.errors import OptionsError, SetError
 from reachconf.sets.containment import contains_points
 from reachconf.sets.reduction import reduction_method
-from reachconf.sets.validate import as_points, as_vector
+from reachconf.sets.validate import as_count, as_points, as_rng, as_tolerance, as_vector
 from reachconf_kernels import zonotope as zk
 
 __all__ = ["Interval", "Zonotope"]
@@ -60,6 +60,12 @@ class Interval:
         if bad.size:
             i = int(bad[0])
             raise SetError(f"lo > hi in dimension {i}: {lo[i]} > {hi[i]} (empty interval)")
+        with np.errstate(over="ignore"):
+            wide = np.nonzero(~np.isfinite(hi - lo))[0]
+        if wide.size:
+            i = int(wide[0])
+            raise SetError(f"the width hi - lo overflows in dimension {i} ([{lo[i]}, {hi[i]}]): unbounded sets are "
+                           f"not allowed")  # fmt: skip
         object.__setattr__(self, "lo", lo)
         object.__setattr__(self, "hi", hi)
 
@@ -109,6 +115,7 @@ class Interval:
     def contains(self, points, tol: float = 0.0):
         """Membership of one point (bool) or of the rows of ``points`` (boolean array), up to ``tol``."""
         P, single = as_points(points, self.dim)
+        tol = as_tolerance(tol)
         r = np.all((P >= self.lo - tol) & (P <= self.hi + tol), axis=1)
         return bool(r[0]) if single else r
 
@@ -123,15 +130,20 @@ class Interval:
         return Interval(np.maximum(self.lo, other.lo), np.minimum(self.hi, other.hi))
 
     def scale(self, alpha: float) -> "Interval":
-        """Scale about the centre by ``alpha >= 0`` (eq. 68)."""
-        if not (np.isfinite(alpha) and alpha >= 0):
+        """Scale about the centre by ``alpha >= 0`` (eq. 68), rounded outward (``alpha = 1``: the box itself)."""
+        if isinstance(alpha, bool) or not isinstance(alpha, (int, float, np.integer, np.floating)) \
+                or not (np.isfinite(alpha) and alpha >= 0):  # fmt: skip
             raise SetError(f"alpha must be a finite non-negative number, got {alpha!r}")
-        c, r = self.center, self.radius
-        return Interval(c - alpha * r, c + alpha * r)
+        if alpha == 1:
+            return self
+        c, r = self.center, alpha * self.radius
+        slack = 4 * np.finfo(float).eps * (np.abs(c) + r)  # the rounding of c, r and c -+ r, with margin
+        return Interval(c - r - slack, c + r + slack)
 
     def is_subset(self, other: "Interval", tol: float = 0.0) -> bool:
         """Is the box inside the interval hull of ``other`` (up to ``tol``)?"""
         other = self._same_dim(other, "is_subset")
+        tol = as_tolerance(tol)
         return bool(np.all(self.lo >= other.lo - tol) and np.all(self.hi <= other.hi + tol))
 
     def _same_dim(self, other, op: str) -> "Interval":
@@ -144,7 +156,9 @@ class Interval:
 
     def sample(self, n: int, rng=None) -> np.ndarray:
         """``n`` points of the box, shape (n, dim): a quarter corners, the rest uniform."""
-        rng = np.random.default_rng(rng)
+        n, rng = as_count(n, "n"), as_rng(rng)
+        if n == 0:
+            return np.empty((0, self.dim))
         corners = np.where(rng.random((max(n // 4, 1), self.dim)) < 0.5, self.lo, self.hi)
         inner = rng.uniform(self.lo, self.hi, size=(n - corners.shape[0], self.dim))
         return np.vstack([corners, inner])[:n]
@@ -344,8 +358,9 @@ class Zonotope:
         -------
         Zonotope
         """
-        if not (np.isfinite(order) and order >= 1):
-            raise SetError(f"order must be >= 1, got {order!r}")
+        if isinstance(order, bool) or not isinstance(order, (int, float, np.integer, np.floating)) \
+                or not (np.isfinite(order) and order >= 1):  # fmt: skip
+            raise SetError(f"order must be a number >= 1, got {order!r}")
         try:
             reduction = reduction_method(method)
         except OptionsError as exc:
@@ -377,7 +392,7 @@ class Zonotope:
 
     def compact(self, tol: float = 0.0) -> "Zonotope":
         """The same set with parallel generators merged and generators of length <= ``tol`` dropped."""
-        c, G = zk.compact(*self._cg(), float(tol))
+        c, G = zk.compact(*self._cg(), as_tolerance(tol))
         return Zonotope.from_kernel(c, G)
 
     def support(self, direction) -> float:
@@ -423,12 +438,14 @@ class Zonotope:
         Returns a bool for one point, a boolean array for the rows of ``points``.
         """
         P, single = as_points(points, self.dim)
-        res = contains_points(self.center, self.generators, P, tol)
+        res = contains_points(self.center, self.generators, P, as_tolerance(tol))
         return bool(res[0]) if single else res
 
     def sample(self, n: int, rng=None) -> np.ndarray:
         """``n`` points inside: random vertices (b in {-1, 1}^m) and random interior points."""
-        rng = np.random.default_rng(rng)
+        n, rng = as_count(n, "n"), as_rng(rng)
+        if n == 0:
+            return np.empty((0, self.dim))
         m = self.generators.shape[1]
         k = max(n // 3, 1)
         B = np.vstack([np.where(rng.random((k, m)) < 0.5, -1.0, 1.0), rng.uniform(-1, 1, size=(n - k, m))])[:n]
@@ -436,7 +453,7 @@ class Zonotope:
 
     def vertices_sample(self, n: int, rng=None) -> np.ndarray:
         """``n`` random vertices (``b`` in {-1, 1}^m; possibly repeated or not extreme)."""
-        rng = np.random.default_rng(rng)
+        n, rng = as_count(n, "n"), as_rng(rng)
         B = np.where(rng.random((n, self.generators.shape[1])) < 0.5, -1.0, 1.0)
         return self.center + B @ self.generators.T
 

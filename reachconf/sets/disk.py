@@ -16,6 +16,7 @@ import numpy as np
 
 from reachconf.errors import SetError
 from reachconf.sets.core import Interval, Zonotope
+from reachconf.sets.validate import as_tolerance
 
 __all__ = ["BoxDisk", "box_disk_distance", "disk_zonotope"]
 
@@ -110,7 +111,7 @@ class BoxDisk:
 
     def contains(self, points, tol: float = 0.0):
         """Exact membership: bool for one point, a boolean array for several (..., n)."""
-        res = self.distance(points) <= tol
+        res = self.distance(points) <= as_tolerance(tol)
         return bool(res) if np.ndim(res) == 0 else res
 
     def interval(self) -> Interval:

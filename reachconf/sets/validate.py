@@ -6,7 +6,7 @@ import numpy as np
 
 from reachconf.errors import SetError
 
-__all__ = ["as_vector", "as_points"]
+__all__ = ["as_vector", "as_points", "as_count", "as_tolerance", "as_rng"]
 
 
 def as_vector(value, name: str, allow_empty: bool = False) -> np.ndarray:
@@ -15,16 +15,19 @@ def as_vector(value, name: str, allow_empty: bool = False) -> np.ndarray:
     Parameters
     ----------
     value : array_like
-        Flattened.
+        A vector, or an array with one non-singleton axis (flattened).
     name : str
         For the message.
     allow_empty : bool
         Accept a vector of length 0.
     """
     try:
-        arr = np.array(value, dtype=np.float64).reshape(-1)
+        arr = np.array(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise SetError(f"{name} must be numeric, got {value!r}") from None
+    if sum(d > 1 for d in arr.shape) > 1:  # a row or column vector is a vector; a matrix is not
+        raise SetError(f"{name} must be a vector, got an array of shape {arr.shape}")
+    arr = arr.reshape(-1)
     if arr.size == 0 and not allow_empty:
         raise SetError(f"{name} is empty")
     if not np.all(np.isfinite(arr)):
@@ -50,3 +53,27 @@ def as_points(points, dim: int, name="points"):
     if not np.all(np.isfinite(P)):
         raise SetError(f"{name} contains NaN or inf")
     return np.ascontiguousarray(P), single
+
+
+def as_count(value, name: str) -> int:
+    """A number of points: a non-negative integer (:class:`SetError` naming ``name`` otherwise)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise SetError(f"{name} must be a non-negative integer, got {value!r}")
+    return int(value)
+
+
+def as_tolerance(value, name: str = "tol") -> float:
+    """A tolerance: a finite number >= 0 (:class:`SetError` naming ``name`` otherwise)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(value) or value < 0:  # fmt: skip
+        raise SetError(f"{name} must be a finite number >= 0, got {value!r}")
+    return float(value)
+
+
+def as_rng(rng) -> np.random.Generator:
+    """``numpy.random.default_rng(rng)``: a seed, a SeedSequence, a Generator or None (:class:`SetError` otherwise)."""
+    try:
+        return np.random.default_rng(rng)
+    except (TypeError, ValueError) as exc:
+        raise SetError(f"rng must be a seed (non-negative integer), a numpy Generator or None, got {rng!r}: "
+                       f"{exc}") from None  # fmt: skip

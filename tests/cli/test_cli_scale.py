@@ -49,8 +49,9 @@ def test_pareto_checks_the_scheduler_before_any_work(run_file, tmp_path, capsys,
     assert not (tmp_path / "o" / "front.json").exists()
 
 
-@pytest.mark.parametrize("argv, needle", [((), "--out DIR is required"),
+@pytest.mark.parametrize("argv, needle", [((), "the following arguments are required: --out"),
                                           (("--iterations", "0"), "must be a positive integer"),
+                                          (("--iterations", "1000000"), "must be at most 60"),
                                           (("--check", "both"), "invalid choice"),
                                           (("--workers", "0"), "must be a positive integer")])  # fmt: skip
 def test_pareto_bad_arguments_are_one_line_errors(run_file, tmp_path, capsys, monkeypatch, argv, needle):

@@ -231,3 +231,16 @@ def test_reachset_conformant_W_before_and_after():
     row = rep.before_after["W_reachset"]["w"]
     assert row["shrink"] > 1.0
     assert rep.before_after["W_reachset_conformant"]["after"] is True
+
+
+def test_cases_shorter_than_half_a_box_segment_are_taken_whole():
+    """Audit: held-out cases shorter than box_segment / 2 left no segment, and np.min([]) raised a bare ValueError."""
+    from reachconf.demo import demo_run_file
+    from reachconf.io import load_suite
+    from reachconf.runfile import load_run
+
+    spec = load_run(demo_run_file())
+    suite = load_suite(demo_run_file().parent / "suite", model=spec.model)
+    short = suite.map(lambda c: c.segment(c.t[0], c.t[0] + 0.98))
+    report = rc.diagnose(spec.model, short, V=spec.V, options=DiagnoseOptions(window=0.2, stride=0.2))
+    assert report.base["box"] is not None  # the minimal box of the whole short cases

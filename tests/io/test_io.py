@@ -66,6 +66,17 @@ def test_save_suite_into_a_folder_holding_another_suite(tmp_path):
     assert [c.name for c in load_suite(folder)] == ["a", "d"]
 
 
+def test_save_suite_onto_a_file_is_a_data_error(tmp_path):
+    """Audit: a file at the folder's path (or above it) gave pathlib's FileExistsError / NotADirectoryError."""
+    suite = TestSuite([make_case("a", "lc")], name="s")
+    (tmp_path / "afile.txt").write_text("x")
+    with pytest.raises(rc.DataError, match="afile.txt: is a file, not a folder"):
+        save_suite(suite, tmp_path / "afile.txt")
+    with pytest.raises(rc.DataError, match="cannot create the suite folder"):
+        save_suite(suite, tmp_path / "afile.txt" / "sub")
+    assert (tmp_path / "afile.txt").read_text() == "x"
+
+
 def test_suite_toml_groups_rename_units(tmp_path):
     write(tmp_path / "run1.csv", "time,steer,y1,y2\n0,10,0,0\n0.1,20,1,1\n0.2,30,2,4\n")
     write(tmp_path / "suite.toml", 'inputs = ["u"]\noutputs = ["y1", "y2"]\n[groups]\n"run1.csv" = "slalom"\n'

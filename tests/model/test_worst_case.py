@@ -101,6 +101,9 @@ def test_worst_case_bad_arguments():
             rc.worst_case(model, X0, TIMES, [1, 0, 0], W=W, **kw)
     with pytest.raises(rc.DataError, match="must return one number"):
         rc.worst_case(model, X0, TIMES, lambda x, u: x, W=W)
+    with pytest.raises(rc.DataError, match="value.x, u. failed: TypeError") as info:  # a callable of one argument
+        rc.worst_case(model, X0, TIMES, lambda x: x[0], W=W)
+    assert info.value.__context__ is None or info.value.__suppress_context__  # one error, not two chained ones
     with pytest.raises(rc.DataError, match="inputs contains NaN"):
         rc.worst_case(rc.models.diff_drive(), rc.Interval([0, 0, 0], [0.1, 0.1, 0.1]), TIMES, [1, 0, 0],
                       inputs=np.full((TIMES.size, 2), np.nan))
