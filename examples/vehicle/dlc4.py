@@ -34,8 +34,9 @@ identified as in ``run.py`` (step 1; ``--params``: taken from its
    merged over all the runs' segments, and how far the segments' own
    ``W_opt`` centres move from one segment to the next.
 
-Prints the findings and writes them to ``--out`` (JSON: ``{"runs": [one dict per run], "segments": item 8}``).  Measured: 27 s wall for two runs with ``--params`` (item 7
-included, warm caches).
+Prints the findings and writes them to ``--out`` (JSON: ``{"runs": [one dict per run], "segments": item 8}``).
+Measured: 27 s wall for two runs with ``--params`` (items 1-7, warm caches); 52 s for all five DLC_4 runs with
+item 8 (the segments of 0.5, 1 and 2 s).
 """
 
 from __future__ import annotations
