@@ -193,11 +193,12 @@ class TestCase:
         return TestCase(f"{self.name}[{t0:g},{t1:g}]", self.group, self.t[keep], self.U[keep], self.Y[keep],
                         self.input_names, self.output_names, {k: v[keep] for k, v in self.extras.items()})  # fmt: skip
 
-    def segments(self, length: float, partial: bool = True) -> list:
-        """The case cut into consecutive segments of ``length`` seconds (section 4.3.3's shorter horizons).
+    def segments(self, length: float, partial: bool = True, step: float | None = None) -> list:
+        """The case cut into segments of ``length`` seconds (section 4.3.3's shorter horizons).
 
-        Segment ``k`` holds the samples with ``t0 + k length <= t <= t0 + (k + 1) length``, so consecutive
-        segments share the sample on their boundary and every sample lies in a segment; each is checked
+        Segment ``k`` holds the samples with ``t0 + k step <= t <= t0 + k step + length`` (``step``
+        defaults to ``length``: consecutive segments that share the sample on their boundary, so every
+        sample lies in a segment; a smaller ``step`` gives overlapping, sliding windows).  Each is checked
         from its own first sample (eq. 67), as a test case of its own.  The report proposes this for long
         maneuvers ("reduce the horizons of the measurement data and search for conformant models on
         smaller segments within maneuvers"): a reach over a few seconds stays tight where one over a whole
@@ -209,44 +210,57 @@ class TestCase:
         length : float
             Segment length (s), positive and finite.
         partial : bool, default True
-            Keep the last segment when it is shorter than ``length`` (False: drop it; its samples are
-            then in no segment).
+            Keep the last segment when it is shorter than ``length`` (False: drop it; with the default
+            ``step`` its samples are then in no segment).
+        step : float, optional
+            Time between the starts of consecutive segments (s), positive and at most ``length``.
 
         Returns
         -------
         list of TestCase
-            Named ``"{name}[{t_first},{t_last}]"`` by their first and last sample times (to the microsecond,
-            trailing zeros dropped: ``run[2,4]``, ``run[1700000000.25,1700000002.25]``), in the case's group.  A case no longer than ``length`` gives itself (one segment, same name).
+            Named ``"{name}[{t_first},{t_last}]"`` by their first and last sample times (to the
+            microsecond, trailing zeros dropped: ``run[2,4]``, ``run[1700000000.25,1700000002.25]``), in
+            the case's group.  A case no longer than ``length`` gives itself (one segment, same name).
         """
-        try:
-            length = float(length)
-        except (TypeError, ValueError):
-            raise DataError(f"test case {self.name!r}: segment length must be a number of seconds, "
-                            f"got {length!r}") from None  # fmt: skip
-        if not (math.isfinite(length) and length > 0):
-            raise DataError(f"test case {self.name!r}: segment length must be a positive number of seconds, "
-                            f"got {length!r}")  # fmt: skip
+        length = self._seconds(length, "segment length")
+        step = length if step is None else self._seconds(step, "segment step")
+        if step > length:
+            raise DataError(f"test case {self.name!r}: segment step {step:g} s is longer than the segments "
+                            f"({length:g} s): samples between them would be in none")  # fmt: skip
         t = self.t
-        # a sample on a boundary belongs to both segments despite rounding (of t0 + k length and of large stamps)
+        # a sample on a boundary belongs to both segments despite rounding (of t0 + k step and of large stamps)
         tol = 1e-9 * max(1.0, length) + 8 * np.finfo(float).eps * max(abs(float(t[0])), abs(float(t[-1])))
         if t[-1] - t[0] <= length + tol:
             return [self]
         out = []
-        starts = t[0] + length * np.arange(int(np.floor((t[-1] - t[0] + tol) / length)) + 1)
-        for a in starts:
-            keep = (t >= a - tol) & (t <= a + length + tol)
-            if keep.sum() < 2:
-                continue
+        for a in t[0] + step * np.arange(int(np.floor((t[-1] - t[0] + tol) / step)) + 1):
+            keep = np.flatnonzero((t >= a - tol) & (t <= a + length + tol))
             full = a + length <= t[-1] + tol
-            if not full and not partial:
-                break
-            first, last = np.flatnonzero(keep)[[0, -1]]
-            if out and last <= out[-1][1]:  # a tail within the last full segment adds nothing
+            if keep.size < 2 and full:  # a gap in the sampling longer than a segment
                 continue
-            out.append((first, last))
-        return [TestCase(f"{self.name}[{_time_label(t[i])},{_time_label(t[j])}]", self.group, t[i:j + 1], self.U[i:j + 1],
-                         self.Y[i:j + 1], self.input_names, self.output_names,
-                         {k: v[i:j + 1] for k, v in self.extras.items()}) for i, j in out]  # fmt: skip
+            if keep.size < 2 or (not full and not partial):
+                break
+            if not out or keep[-1] > out[-1][1]:  # (a tail inside the last segment adds nothing)
+                out.append((keep[0], keep[-1]))
+            if not full:
+                break
+        return [self._piece(i, j) for i, j in out]
+
+    def _seconds(self, value, what: str) -> float:
+        """``value`` as a positive finite number of seconds (DataError naming the case and ``what``)."""
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            raise DataError(f"test case {self.name!r}: {what} must be a number of seconds, got {value!r}") from None
+        if not (math.isfinite(value) and value > 0):
+            raise DataError(f"test case {self.name!r}: {what} must be a positive number of seconds, got {value!r}")
+        return value
+
+    def _piece(self, i: int, j: int) -> "TestCase":
+        """Samples ``i..j`` as a case named by their first and last sample times."""
+        t, sl = self.t, slice(i, j + 1)
+        return TestCase(f"{self.name}[{_time_label(t[i])},{_time_label(t[j])}]", self.group, t[sl], self.U[sl],
+                        self.Y[sl], self.input_names, self.output_names, {k: v[sl] for k, v in self.extras.items()})
 
     def decimate(self, k: int) -> "TestCase":
         """Every ``k``-th sample (inputs stay piecewise constant on the coarser grid)."""
@@ -426,9 +440,9 @@ class TestSuite:
         """The cases for which ``predicate(case)`` is true, as a suite."""
         return TestSuite([c for c in self.cases if predicate(c)], name=self.name)
 
-    def segments(self, length: float, partial: bool = True) -> "TestSuite":
+    def segments(self, length: float, partial: bool = True, step: float | None = None) -> "TestSuite":
         """Every case cut into segments of ``length`` seconds (:meth:`TestCase.segments`), as a suite."""
-        return TestSuite([s for c in self.cases for s in c.segments(length, partial)], name=self.name)
+        return TestSuite([s for c in self.cases for s in c.segments(length, partial, step)], name=self.name)
 
     def map(self, fn) -> "TestSuite":
         """``fn`` applied to every case, as a suite."""

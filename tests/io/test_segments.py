@@ -59,6 +59,29 @@ def test_segment_names_keep_their_times_apart_on_large_time_stamps():
     assert names[:2] == ["run[1700000000,1700000000.25]", "run[1700000000.25,1700000000.5]"]
 
 
+def test_sliding_segments_overlap_by_length_minus_step():
+    case = _case()
+    segs = case.segments(2.0, step=0.5)
+    starts = [s.t[0] for s in segs]
+    assert np.allclose(starts, 0.5 * np.arange(14))  # 13 full windows (starts 0..6) and the tail from 6.5
+    assert all(s.duration == pytest.approx(2.0) for s in segs[:-1]) and segs[-1].name == "run[6.5,8.39]"
+    assert len({s.name for s in segs}) == len(segs)
+    assert len(case.segments(2.0, partial=False, step=0.5)) == 13
+    assert [s.name for s in case.segments(2.0, step=2.0)] == [s.name for s in case.segments(2.0)]
+    with pytest.raises(rc.DataError, match="segment step 3 s is longer than the segments"):
+        case.segments(2.0, step=3.0)
+    with pytest.raises(rc.DataError, match="segment step must be a positive number"):
+        case.segments(2.0, step=0)
+
+
+def test_a_gap_in_the_sampling_longer_than_a_segment_is_skipped_not_the_rest():
+    t = np.concatenate([np.arange(0, 2.001, 0.1), np.arange(5.0, 7.001, 0.1)])
+    case = TestCase.from_signals("gap", t, {"u": t, "y": t}, ("u",), ("y",))
+    segs = case.segments(1.0)
+    covered = np.unique(np.concatenate([s.t for s in segs]))
+    assert covered.size == t.size and segs[-1].t[-1] == pytest.approx(7.0)
+
+
 @pytest.mark.parametrize("bad", [0, -1.0, float("nan"), float("inf"), "two", None])
 def test_bad_lengths_are_data_errors_naming_the_case(bad):
     with pytest.raises(rc.DataError, match="test case 'run': segment length"):
