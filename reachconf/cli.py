@@ -74,15 +74,20 @@ class _Run:
 
 
 def _select_cases(spec, args, segments=True):
-    """The run's cases (``--case``), cut into segments by ``--segment-length`` or the file's ``segment_length``."""
-    from reachconf.runfile import check_segment_length, select_cases
+    """The run's cases (``--case``), cut into segments by ``--segment-length`` / ``--segment-step`` or the file's
+    ``segment_length`` / ``segment_step`` (the flags win)."""
+    from reachconf.runfile import check_segment_length, check_segment_step, select_cases
 
     suite = select_cases(spec.suite(), getattr(args, "case", None), spec.suite_path)
-    length = getattr(args, "segment_length", None)
+    length, step = getattr(args, "segment_length", None), getattr(args, "segment_step", None)
     if length is not None:
         length = check_segment_length(length, "--segment-length", spec.X0)
     length = length if length is not None else spec.segment_length
-    return suite.segments(length) if segments and length is not None else suite
+    if step is not None:
+        step = check_segment_step(step, length, "--segment-step", "--segment-length or segment_length")
+    elif spec.segment_step is not None and length is not None:
+        step = check_segment_step(spec.segment_step, length, f"{spec.path}: segment_step", "segment_length")
+    return suite.segments(length, step=step) if segments and length is not None else suite
 
 
 def _load(args):
@@ -336,6 +341,9 @@ def build_parser() -> argparse.ArgumentParser:
             sp.add_argument("--segment-length", type=positive_seconds, default=None, dest="segment_length",
                             help="check consecutive segments of this many seconds of each case, each from its "
                                  "own first sample (overrides the run file's segment_length)")  # fmt: skip
+            sp.add_argument("--segment-step", type=positive_seconds, default=None, dest="segment_step",
+                            help="start a segment every this many seconds (at most the length: overlapping "
+                                 "windows; default the length)")  # fmt: skip
 
     sp = sub.add_parser("demo", help="run the main job on the shipped example suite")
     common(sp, run=False)

@@ -5,6 +5,7 @@ Example::
     model = "bicycle_closed_loop"      # built-in name or "package.module:attribute"
     suite = "suite"                    # folder, relative to this file
     segment_length = 2.0               # optional: cut the cases into segments of this many seconds
+    segment_step = 0.5                 # optional: a new segment every 0.5 s (overlapping); default the length
     [params]                           # optional parameter overrides
     c_f = 9.7
     [sets]                             # intervals as [lo, hi] per channel, in the model's order
@@ -26,7 +27,8 @@ Example::
 ``segment_length`` (seconds; :meth:`reachconf.io.TestCase.segments`) makes ``reach``, ``conform``,
 ``synth`` and ``pareto`` check every consecutive stretch of that length from its own first sample (eq. 67)
 instead of each whole case: the shorter horizons of the report's section 4.3.3, for recordings too long for
-one reach.  It needs eq. 67's initial sets (no ``[sets] X0``); ``diagnose`` ignores it.
+one reach; ``segment_step`` (at most the length) starts one every that many seconds instead (sliding
+windows).  They need eq. 67's initial sets (no ``[sets] X0``); ``diagnose`` ignores them.
 """
 
 from __future__ import annotations
@@ -51,9 +53,10 @@ from reachconf.reach_options import ReachOptions
 from reachconf.sets.core import Interval
 
 __all__ = ["RunSpec", "load_run", "resolve_model", "diagnose_settings", "select_cases", "input_paths",
-           "check_segment_length"]  # fmt: skip
+           "check_segment_length", "check_segment_step"]  # fmt: skip
 
-_KEYS = {"model", "suite", "segment_length", "params", "sets", "reach", "trace", "synthesis", "description", "workers", "diagnose"}
+_KEYS = {"model", "suite", "segment_length", "segment_step", "params", "sets", "reach", "trace", "synthesis",
+         "description", "workers", "diagnose"}  # fmt: skip
 
 
 @dataclass
@@ -73,6 +76,7 @@ class RunSpec:
     workers: int | None
     raw: dict
     segment_length: float | None = None
+    segment_step: float | None = None
 
     def suite(self):
         """The test suite the run file names (loaded with the model's signal names)."""
@@ -211,11 +215,13 @@ def load_run(path) -> RunSpec:
     except ReachconfError as exc:
         raise DataError(f"{path}: {exc}") from None
     _table(raw, "diagnose", str(path))
-    length = raw.get("segment_length")
+    length, step = raw.get("segment_length"), raw.get("segment_step")
     if length is not None:
         length = check_segment_length(length, f"{path}: segment_length", X0)
+    if step is not None:
+        step = check_segment_step(step, length, f"{path}: segment_step", "segment_length")
     return RunSpec(path, model, suite_path, W, V, X0, reach_opts, method, trace_opts, synth_opts, workers, raw,
-                   length)  # fmt: skip
+                   length, step)  # fmt: skip
 
 
 def check_segment_length(value, where: str, X0=None) -> float:
@@ -227,6 +233,17 @@ def check_segment_length(value, where: str, X0=None) -> float:
         raise DataError(f"{where}: segments start from their own first sample (eq. 67); [sets] X0 would start "
                         f"every segment from the same set — remove one of the two")  # fmt: skip
     return float(value)
+
+
+def check_segment_step(value, length, where: str, length_name: str) -> float:
+    """``value`` as the time between segment starts: positive, at most ``length`` (which must be given)."""
+    if length is None:
+        raise DataError(f"{where} needs a segment length ({length_name})")
+    step = check_segment_length(value, where)
+    if step > length:
+        raise DataError(f"{where} ({step:g} s) is longer than the segments ({length:g} s): samples between them "
+                        f"would be in none")  # fmt: skip
+    return step
 
 
 def input_paths(path) -> tuple[list, list]:

@@ -73,6 +73,10 @@ def test_segment_length_checks_every_segment(tmp_path, run_copy):
     proc = run("conform", run_copy, "--case", "lane_change_01", "--kind", "trace", "--json", out / "d.json")
     assert proc.returncode == 0, proc.stderr
     assert list(json.loads((out / "d.json").read_text())) == ["lane_change_01[0,2.5]", "lane_change_01[2.5,4]"]
+    proc = run("conform", run_copy, "--case", "lane_change_01", "--kind", "trace", "--segment-length", "2",
+               "--segment-step", "1", "--json", out / "e.json")  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert list(json.loads((out / "e.json").read_text())) == [f"lane_change_01[{a},{a + 2}]" for a in range(3)]
 
 
 @pytest.mark.parametrize(
@@ -86,6 +90,10 @@ def test_segment_length_checks_every_segment(tmp_path, run_copy):
          ("--segment-length", "1"),
          "--segment-length: segments start from their own first sample"),
         (lambda t: t, ("--segment-length", "0"), "must be a positive, finite number of seconds"),
+        (lambda t: t, ("--segment-step", "1"), "--segment-step needs a segment length"),
+        (lambda t: t, ("--segment-length", "1", "--segment-step", "2"), "is longer than the segments"),
+        (lambda t: t.replace('suite = "suite"', 'suite = "suite"\nsegment_step = 1'), (),
+         "segment_step needs a segment length (segment_length)"),
     ],
 )
 def test_bad_segment_lengths_are_one_line_errors(run_copy, edit, args, message):
