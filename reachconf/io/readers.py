@@ -134,7 +134,8 @@ def read_npz_columns(path: Path) -> dict:
                     arr = np.lib.format.read_array(fh, allow_pickle=False)
             except DataError:
                 raise
-            except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError) as exc:
+            except (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError,
+                    RuntimeError) as exc:  # RuntimeError: zipfile's "encrypted, password required" (a flipped flag bit)
                 raise DataError(f"{path}: array {key!r} cannot be read (truncated or corrupt: {exc})") from None
             cols[key] = np.asarray(arr, dtype=float)
     if not cols:

@@ -82,7 +82,8 @@ def csv_files(draw):
         elif fault == "width":
             rows[r] = rows[r][:-1] if draw(st.booleans()) else rows[r] + [draw(numbers)]
         elif fault == "time" and "t" in header and header.index("t") < len(rows[r]):
-            rows[r][header.index("t")] = draw(st.sampled_from(["0", "-1", rows[0][header.index("t")]]))
+            i = header.index("t")  # (row 0 may have lost its time cell to an earlier "width" fault)
+            rows[r][i] = draw(st.sampled_from(["0", "-1"] + ([rows[0][i]] if i < len(rows[0]) else [])))
         elif fault == "rows":
             rows = rows[: draw(st.integers(0, 1))]
     blank = draw(st.lists(st.integers(0, len(rows) + 1), max_size=3))
@@ -264,3 +265,24 @@ def test_npz_whose_central_directory_names_an_unsupported_zip_version_is_a_data_
     path.write_bytes(bytes(raw))
     case, error = load_or_error(load_case, path)
     assert case is None and "not a readable .npz file" in str(error)
+
+
+def test_npz_member_flagged_encrypted_is_a_data_error(tmp_path):
+    """Found by the fuzzer (27 Nov): a flipped 'encrypted' flag bit made zipfile raise RuntimeError past the reader."""
+    from reachconf.io.readers import read_npz_columns
+
+    path = tmp_path / "case.npz"
+    np.savez(path, t=np.arange(4.0), y=np.zeros(4))
+    data = bytearray(path.read_bytes())
+    for sig, offset in ((b"PK\x03\x04", 6), (b"PK\x01\x02", 8)):  # general-purpose flags of local and central headers
+        at = data.find(sig)
+        while at >= 0:
+            data[at + offset] |= 1
+            at = data.find(sig, at + 4)
+    path.write_bytes(bytes(data))
+    try:
+        read_npz_columns(path)
+    except DataError as exc:
+        assert "case.npz: array 't' cannot be read" in str(exc), exc
+    else:
+        raise AssertionError("an encrypted member was read")
