@@ -220,7 +220,8 @@ class TestCase:
         list of TestCase
             Named ``"{name}[{t_first},{t_last}]"`` by their first and last sample times (to the
             microsecond, trailing zeros dropped: ``run[2,4]``, ``run[1700000000.25,1700000002.25]``), in
-            the case's group.  A case no longer than ``length`` gives itself (one segment, same name).
+            the case's group.  A case no longer than ``length`` gives itself (one segment, same name), or
+            nothing if it is shorter and ``partial`` is False.
         """
         length = self._seconds(length, "segment length")
         step = length if step is None else self._seconds(step, "segment step")
@@ -230,8 +231,8 @@ class TestCase:
         t = self.t
         # a sample on a boundary belongs to both segments despite rounding (of t0 + k step and of large stamps)
         tol = 1e-9 * max(1.0, length) + 8 * np.finfo(float).eps * max(abs(float(t[0])), abs(float(t[-1])))
-        if t[-1] - t[0] <= length + tol:
-            return [self]
+        if t[-1] - t[0] <= length + tol:  # one segment: the case itself (dropped if shorter and not partial)
+            return [self] if partial or t[-1] - t[0] >= length - tol else []
         out = []
         for a in t[0] + step * np.arange(int(np.floor((t[-1] - t[0] + tol) / step)) + 1):
             keep = np.flatnonzero((t >= a - tol) & (t <= a + length + tol))
@@ -442,7 +443,11 @@ class TestSuite:
 
     def segments(self, length: float, partial: bool = True, step: float | None = None) -> "TestSuite":
         """Every case cut into segments of ``length`` seconds (:meth:`TestCase.segments`), as a suite."""
-        return TestSuite([s for c in self.cases for s in c.segments(length, partial, step)], name=self.name)
+        segments = [s for c in self.cases for s in c.segments(length, partial, step)]
+        if not segments:
+            raise DataError(f"test suite {self.name!r}: every case is shorter than the segment length {length!r} s "
+                            f"(partial=False keeps no segment)")  # fmt: skip
+        return TestSuite(segments, name=self.name)
 
     def map(self, fn) -> "TestSuite":
         """``fn`` applied to every case, as a suite."""

@@ -43,7 +43,11 @@ def test_partial_false_drops_the_short_tail():
 
 def test_a_short_case_is_its_own_segment_and_suites_segment_every_case():
     case = _case(duration=1.5)
-    assert case.segments(2.0) == [case]
+    assert case.segments(2.0) == [case] and case.segments(2.0, partial=False) == []
+    whole = _case(duration=2.0)
+    assert whole.segments(2.0, partial=False) == [whole]  # exactly one length: kept
+    with pytest.raises(rc.DataError, match="every case is shorter than the segment length"):
+        TestSuite([case], name="S").segments(2.0, partial=False)
     suite = TestSuite([_case(name="a"), _case(duration=3.0, name="b", group="H")], name="S")
     segs = suite.segments(2.0)
     assert isinstance(segs, TestSuite) and segs.name == "S"
