@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from reachconf.errors import DataError
+from reachconf.io.segments import case_segments
 
 __all__ = ["TestCase", "TestSuite", "check_signals", "case_arrays", "real_array", "suite_cases"]
 
@@ -70,11 +70,6 @@ def check_signals(where: str, t, U, Y, input_names, output_names, first_row: int
         raise DataError(f"{where}: row {row(r + 1)}, column 't': time is not strictly increasing "
                         f"({t[r]} then {t[r + 1]})")  # fmt: skip
     return t, U, Y
-
-
-def _time_label(t: float) -> str:
-    """A sample time in a segment's name: to the microsecond, without trailing zeros (``2``, ``149.99``)."""
-    return np.format_float_positional(float(t), precision=6, unique=False, fractional=True, trim="-")
 
 
 def _frozen(arr: np.ndarray) -> np.ndarray:
@@ -223,45 +218,7 @@ class TestCase:
             the case's group.  A case no longer than ``length`` gives itself (one segment, same name), or
             nothing if it is shorter and ``partial`` is False.
         """
-        length = self._seconds(length, "segment length")
-        step = length if step is None else self._seconds(step, "segment step")
-        if step > length:
-            raise DataError(f"test case {self.name!r}: segment step {step:g} s is longer than the segments "
-                            f"({length:g} s): samples between them would be in none")  # fmt: skip
-        t = self.t
-        # a sample on a boundary belongs to both segments despite rounding (of t0 + k step and of large stamps)
-        tol = 1e-9 * max(1.0, length) + 8 * np.finfo(float).eps * max(abs(float(t[0])), abs(float(t[-1])))
-        if t[-1] - t[0] <= length + tol:  # one segment: the case itself (dropped if shorter and not partial)
-            return [self] if partial or t[-1] - t[0] >= length - tol else []
-        out = []
-        for a in t[0] + step * np.arange(int(np.floor((t[-1] - t[0] + tol) / step)) + 1):
-            keep = np.flatnonzero((t >= a - tol) & (t <= a + length + tol))
-            full = a + length <= t[-1] + tol
-            if keep.size < 2 and full:  # a gap in the sampling longer than a segment
-                continue
-            if keep.size < 2 or (not full and not partial):
-                break
-            if not out or keep[-1] > out[-1][1]:  # (a tail inside the last segment adds nothing)
-                out.append((keep[0], keep[-1]))
-            if not full:
-                break
-        return [self._piece(i, j) for i, j in out]
-
-    def _seconds(self, value, what: str) -> float:
-        """``value`` as a positive finite number of seconds (DataError naming the case and ``what``)."""
-        try:
-            value = float(value)
-        except (TypeError, ValueError):
-            raise DataError(f"test case {self.name!r}: {what} must be a number of seconds, got {value!r}") from None
-        if not (math.isfinite(value) and value > 0):
-            raise DataError(f"test case {self.name!r}: {what} must be a positive number of seconds, got {value!r}")
-        return value
-
-    def _piece(self, i: int, j: int) -> "TestCase":
-        """Samples ``i..j`` as a case named by their first and last sample times."""
-        t, sl = self.t, slice(i, j + 1)
-        return TestCase(f"{self.name}[{_time_label(t[i])},{_time_label(t[j])}]", self.group, t[sl], self.U[sl],
-                        self.Y[sl], self.input_names, self.output_names, {k: v[sl] for k, v in self.extras.items()})
+        return case_segments(self, length, partial, step)
 
     def decimate(self, k: int) -> "TestCase":
         """Every ``k``-th sample (inputs stay piecewise constant on the coarser grid)."""
