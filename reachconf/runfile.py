@@ -227,7 +227,7 @@ def load_run(path) -> RunSpec:
 def check_segment_length(value, where: str, X0=None) -> float:
     """``value`` as a segment length in seconds (positive, finite); a DataError naming ``where`` if not, or
     if an explicit initial set ``X0`` is given too (it would start every segment from the same set)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+    if not _is_number(value) or not math.isfinite(value) or value <= 0:
         raise DataError(f"{where} must be a positive number of seconds, got {value!r}")
     if X0 is not None:
         raise DataError(f"{where}: segments start from their own first sample (eq. 67); [sets] X0 would start "

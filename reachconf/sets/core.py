@@ -14,7 +14,7 @@ import numpy as np
 from reachconf.errors import OptionsError, SetError
 from reachconf.sets.containment import contains_points
 from reachconf.sets.reduction import reduction_method
-from reachconf.sets.validate import as_count, as_points, as_rng, as_tolerance, as_vector
+from reachconf.sets.validate import as_count, as_points, as_rng, as_tolerance, as_vector, is_finite_number
 from reachconf_kernels import zonotope as zk
 
 __all__ = ["Interval", "Zonotope"]
@@ -131,8 +131,7 @@ class Interval:
 
     def scale(self, alpha: float) -> "Interval":
         """Scale about the centre by ``alpha >= 0`` (eq. 68), rounded outward (``alpha = 1``: the box itself)."""
-        if isinstance(alpha, bool) or not isinstance(alpha, (int, float, np.integer, np.floating)) \
-                or not (np.isfinite(alpha) and alpha >= 0):  # fmt: skip
+        if not is_finite_number(alpha) or alpha < 0:
             raise SetError(f"alpha must be a finite non-negative number, got {alpha!r}")
         if alpha == 1:
             return self
@@ -358,8 +357,7 @@ class Zonotope:
         -------
         Zonotope
         """
-        if isinstance(order, bool) or not isinstance(order, (int, float, np.integer, np.floating)) \
-                or not (np.isfinite(order) and order >= 1):  # fmt: skip
+        if not is_finite_number(order) or order < 1:
             raise SetError(f"order must be a number >= 1, got {order!r}")
         try:
             reduction = reduction_method(method)

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from reachconf.checks import value_has_type
 from reachconf.errors import SetError
 
-__all__ = ["as_vector", "as_points", "as_count", "as_tolerance", "as_rng"]
+__all__ = ["as_vector", "as_points", "as_count", "as_tolerance", "as_rng", "is_finite_number"]
 
 
 def as_vector(value, name: str, allow_empty: bool = False) -> np.ndarray:
@@ -57,15 +58,14 @@ def as_points(points, dim: int, name="points"):
 
 def as_count(value, name: str) -> int:
     """A number of points: a non-negative integer (:class:`SetError` naming ``name`` otherwise)."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+    if not value_has_type(value, int) or value < 0:
         raise SetError(f"{name} must be a non-negative integer, got {value!r}")
     return int(value)
 
 
 def as_tolerance(value, name: str = "tol") -> float:
     """A tolerance: a finite number >= 0 (:class:`SetError` naming ``name`` otherwise)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not np.isfinite(value) or value < 0:  # fmt: skip
+    if not is_finite_number(value) or value < 0:
         raise SetError(f"{name} must be a finite number >= 0, got {value!r}")
     return float(value)
 
@@ -77,3 +77,8 @@ def as_rng(rng) -> np.random.Generator:
     except (TypeError, ValueError) as exc:
         raise SetError(f"rng must be a seed (non-negative integer), a numpy Generator or None, got {rng!r}: "
                        f"{exc}") from None  # fmt: skip
+
+
+def is_finite_number(value) -> bool:
+    """A real number (not a bool, not text) that is finite."""
+    return value_has_type(value, float) and np.isfinite(float(value))
