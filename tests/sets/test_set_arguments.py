@@ -53,4 +53,6 @@ def test_scale_encloses_the_exact_scaled_box():
             c = (Fraction(lo[i]) + Fraction(hi[i])) / 2
             r = (Fraction(hi[i]) - Fraction(lo[i])) / 2 * Fraction(alpha)
             assert Fraction(box.lo[i]) <= c - r and c + r <= Fraction(box.hi[i])
+            slack = Fraction(16 * np.finfo(float).eps) * (abs(c) + r)  # and tight: a few ulps wider at most
+            assert c - r - Fraction(box.lo[i]) <= slack and Fraction(box.hi[i]) - (c + r) <= slack
     assert B.scale(1.0) is B and B.scale(1) is B
