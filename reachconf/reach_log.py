@@ -56,7 +56,9 @@ class ReachLog:
     budgets_tried : ndarray
         The ``AdaptiveReach.error_budget`` of every run, the last one the run
         kept: a run whose error could not be bounded is repeated from the
-        start with half the budget (``budget_retries``).
+        start with half the budget (``budget_retries``); the last budget
+        appears twice when its ordinary run failed too and the run that
+        held the step over budget was kept.
     """
 
     branch: np.ndarray
@@ -113,10 +115,12 @@ class ReachLog:
                          "its start, halved)")
         else:
             lines.append("  no splits")
-        if np.size(self.budgets_tried) > 1:
-            tried = ", ".join(f"{b:g}" for b in np.asarray(self.budgets_tried)[:-1])
-            lines.append(f"  error_budget {float(np.asarray(self.budgets_tried)[-1]):g} after the error could not be "
-                         f"bounded with {tried}")  # fmt: skip
+        b = np.asarray(self.budgets_tried, dtype=float)
+        if b.size > 1:
+            held = bool(b[-1] == b[-2])  # the last budget run again, holding the step over budget
+            tried = ", ".join(f"{v:g}" for v in b[:-1])
+            lines.append(f"  error_budget {b[-1]:g} after the error could not be bounded with {tried}"
+                         + ("; held over budget where smaller steps could not lower the error rate" if held else ""))
         return "\n".join(lines)
 
     def __repr__(self):

@@ -169,7 +169,10 @@ class AdaptiveReach(ReachAlgorithm):
         quarter of the splits (:data:`reachconf.reach_adaptive.RETRY_SPLITS`), up to
         this many times (0: no retry); the budgets tried are in
         ``tube.log.budgets_tried``.  Measured: the coupled Van der Pol (T = 7)
-        fails at t = 6.6 s with 0.7 and is verified with 0.35.
+        fails at t = 6.6 s with 0.7 and is verified with 0.35.  When the
+        last budget fails too, it runs once more holding the step over
+        budget where smaller steps cannot lower the error rate (its budget
+        then appears twice in ``budgets_tried``).
     rtol, atol : float, default 1e-3 and 1e-6
         The error rates are measured against the set's radius, but per state
         against at least ``rtol * |x_i| + atol`` (``x`` the set's centre),

@@ -118,9 +118,31 @@ def test_adaptive_retries_with_half_the_budget_when_the_error_cannot_be_bounded(
 
 def test_adaptive_failure_after_retries_names_every_budget_tried():
     opts = rc.ReachOptions(algorithm=rc.AdaptiveReach(error_budget=80.0, budget_retries=3))
-    with pytest.raises(rc.ReachError, match="error budgets tried, each from the start: 80, 40, 20, 10") as info:
+    with pytest.raises(rc.ReachError, match="error budgets tried, each from the start: 80, 40, 20, 10, and 10 "
+                       "again holding the step over budget") as info:
         rc.reach(vanderpol(), VDP_X0, 7.0, options=opts)
-    assert info.value.tried["error_budgets"] == [80.0, 40.0, 20.0, 10.0]
+    # the last budget runs in the ordinary mode first, then once more holding the step over budget
+    assert info.value.tried["error_budgets"] == [80.0, 40.0, 20.0, 10.0, 10.0]
+
+
+def test_adaptive_last_budget_runs_the_ordinary_mode_before_holding_over_budget(monkeypatch):
+    import reachconf.reach_adaptive as ra
+
+    modes = []
+    once = ra._run_once
+
+    def spy(*args, last=False, **kw):
+        modes.append((kw["options"].alg.error_budget if "options" in kw else args[5].alg.error_budget, last))
+        return once(*args, last=last, **kw)
+
+    monkeypatch.setattr(ra, "_run_once", spy)
+    opts = rc.ReachOptions(algorithm=rc.AdaptiveReach(error_budget=80.0, budget_retries=1))
+    with pytest.raises(rc.ReachError, match="80, 40, and 40 again holding"):
+        rc.reach(vanderpol(), VDP_X0, 7.0, options=opts)
+    assert modes == [(80.0, False), (40.0, False), (40.0, True)]
+    modes.clear()
+    tube = rc.reach(vanderpol(), VDP_X0, 7.0)  # verified on the first budget: one ordinary run
+    assert modes == [(0.7, False)] and list(tube.log.budgets_tried) == [0.7]
 
 
 def test_adaptive_stops_at_max_steps_instead_of_allocating():
