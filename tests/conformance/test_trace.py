@@ -152,3 +152,26 @@ def test_bad_input(model, suite):
         trace_conformance(model, bad, W_STAR, V_SET)
     with pytest.raises(rc.OptionsError, match="needs the measurement-error set"):
         rc.minimal_trace_bounds(model, suite)
+
+
+def test_a_zonotope_W_is_not_replaced_by_its_hull():
+    """W = {(a, a)}: x1 - x2 stays constant; data with x1 = t, x2 = -t cannot be produced.
+
+    Alg. 1 searched within W's interval hull and answered "conformant" with the
+    trace w = (0.99, -0.99), which is not in W.  A zonotope that is not a box is
+    now an error (its hull on request); one that is a box is the box.
+    """
+    m = rc.Model(name="two_integrators", states=("x1", "x2"), disturbances=("w1", "w2"),
+                 dynamics=lambda s: [s.w1, s.w2])  # fmt: skip
+    t = np.arange(21) * 0.1
+    case = TestCase("diverging", "g", t, np.zeros((21, 0)), np.column_stack([t, -t]), (), ("x1", "x2"))
+    W = rc.Zonotope([0.0, 0.0], [[1.0], [1.0]])
+    V = rc.Interval([-0.01, -0.01], [0.01, 0.01])
+    for method in ("auto", "optctrl"):
+        with pytest.raises(rc.SetArgumentError, match="W is a zonotope that is not a box"):
+            trace_conformance(m, case, W, V, method=method)
+    with pytest.raises(rc.SetArgumentError, match="V is a zonotope that is not a box"):
+        trace_conformance(m, case, W.interval(), rc.Zonotope([0.0, 0.0], [[0.01], [0.01]]))
+    hull = trace_conformance(m, case, W.interval(), V, method="optctrl")  # the hull, asked for: it admits the data
+    box = trace_conformance(m, case, rc.Zonotope([0.0, 0.0], [[1.0, 0.0], [0.0, 1.0]]), V, method="optctrl")
+    assert hull.conformant and box.conformant
