@@ -2,7 +2,12 @@
 
 ``p`` is in ``Z(c, G)`` (with tolerance ``tol``) iff some ``b`` with
 ``|b|_inf <= 1 + tol`` has ``|G b - (p - c)|_inf <= tol * s`` where
-``s = max(1, max_i sum_j |G_ij|)``.
+``s = max(max_i sum_j |G_ij|, REL_MAGNITUDE * max(|c|_inf, |p|_inf))``: the
+slack is relative to the set's size (and, for a set of no size, to the
+numbers' magnitude, for the rounding of ``p - c``), never an absolute amount
+that would swallow a set of tiny numbers (outputs of order 1e-9).  The test
+runs on the problem divided by ``s`` (the simplex's pivot tolerances are
+absolute); ``s = 0`` (a point at the origin) is inside only if ``p = c``.
 
 For each point a phase-1 simplex solves ``G beta + S a = d + G 1`` with
 ``0 <= beta <= 2`` (``b = beta - 1``) and artificials ``a >= 0``, minimising
@@ -25,6 +30,10 @@ from numba import njit, prange
 INSIDE = 1
 OUTSIDE = 0
 UNDECIDED = -1
+
+#: the tolerance's scale is at least this fraction of the numbers' magnitude (rounding of ``p - c``: 1e-14 of it
+#: with ``tol = 1e-9``); it was ``max(1, ...)``, an absolute floor that made data of order 1e-9 always "inside"
+REL_MAGNITUDE = 1e-5
 
 
 @njit(cache=True)
@@ -202,13 +211,21 @@ def _row_abs_sums(G):
 @njit(cache=True, parallel=True)
 def contains_batch(c, G, P, tol):
     """Status per row of ``P``: 1 inside, 0 outside, -1 undecided (see module docstring)."""
-    s = max(1.0, np.max(_row_abs_sums(G))) if G.shape[0] else 1.0
+    rmax = np.max(_row_abs_sums(G)) if G.shape[0] and G.shape[1] else 0.0
+    cmag = np.max(np.abs(c)) if c.size else 0.0
     out = np.empty(P.shape[0], dtype=np.int64)
     for k in prange(P.shape[0]):
         d = P[k] - c
-        x, y, _ = _phase1(G, d, tol, s)
+        pmag = np.max(np.abs(P[k])) if d.size else 0.0
+        sig = max(rmax, REL_MAGNITUDE * max(cmag, pmag))
+        if sig == 0.0:
+            out[k] = INSIDE if np.all(d == 0.0) else OUTSIDE
+            continue
+        Gs = G / sig
+        ds = d / sig
+        x, y, _ = _phase1(Gs, ds, tol, 1.0)
         # the certificates are checked independently of the simplex's own verdict
-        out[k] = _certify(G, d, x, y, tol, s)
+        out[k] = _certify(Gs, ds, x, y, tol, 1.0)
     return out
 
 
@@ -247,11 +264,22 @@ def contains_mapped_sequence(tp_c, tp_G, ng, C, off, v_rad, P, tol, stop_at_outs
                 G[i, j] = v_rad[i]
                 j += 1
         r = _row_abs_sums(G)
-        s = max(1.0, np.max(r)) if p else 1.0
-        inside_hull = True
         d = P[k] - c
+        mag = 0.0  # magnitude of the numbers (the terms of the centre, the point): their rounding
         for i in range(p):
-            if abs(d[i]) > r[i] * (1.0 + tol) + tol * s:
+            mi = abs(off[k, i]) + abs(P[k, i])
+            for rr in range(n):
+                mi += abs(C[i, rr] * tp_c[k, rr])
+            mag = max(mag, mi)
+        s = max(np.max(r) if p else 0.0, REL_MAGNITUDE * mag)  # see the module docstring
+        if s == 0.0:
+            s = 1.0  # all zero: d == 0 exactly, inside
+        G /= s
+        d /= s
+        r /= s
+        inside_hull = True
+        for i in range(p):
+            if abs(d[i]) > r[i] * (1.0 + tol) + tol:
                 inside_hull = False
                 break
         if not inside_hull:
@@ -259,8 +287,8 @@ def contains_mapped_sequence(tp_c, tp_G, ng, C, off, v_rad, P, tol, stop_at_outs
         elif m == 0:
             out[k] = INSIDE
         else:
-            x, y, _ = _phase1(G, d, tol, s)
-            out[k] = _certify(G, d, x, y, tol, s)
+            x, y, _ = _phase1(G, d, tol, 1.0)
+            out[k] = _certify(G, d, x, y, tol, 1.0)
         if stop_at_outside and out[k] == OUTSIDE:
             break
     return out

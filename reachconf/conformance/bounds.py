@@ -54,7 +54,7 @@ def _inflate(lo, hi, rel, floor):
 def certify_trace(model, case, x0, W, box: Interval, V, options: TraceOptions, method="scp") -> TraceResult:
     """Alg. 1's verdict for one given trace ``(x0, W)`` with the box ``W ∈ box`` and ``V`` (no search)."""
     t, U, Y = case_arrays(model, case)
-    Vb = as_box(V, model.p, "V")
+    Vb = as_box(V, model.p, "V", exact=True)
     return simulate_verdict(model, getattr(case, "name", "case"), t, U, Y, np.array(x0, float), W, box.lo, box.hi,
                             Vb.lo, Vb.hi, options.substeps, method, time.perf_counter(),
                             keep_samples=options.keep_samples)  # fmt: skip
@@ -78,7 +78,7 @@ def minimize_box(model, case, V, W_start: Interval, start: TraceResult, options:
     """
     options = options or TraceOptions()
     t, U, Y = case_arrays(model, case)
-    Vb = as_box(V, model.p, "V")
+    Vb = as_box(V, model.p, "V", exact=True)
     V_lo, V_hi = Vb.lo, Vb.hi
     # The volume itself is a degenerate objective (one zero-width channel makes it 0 whatever the others
     # are), so the SCP minimises the sum of the channel widths normalised by step 1's box: the
@@ -184,7 +184,7 @@ def case_box(model, case, V=None, method: str = "auto", solve_for: str = "W",
                                        V_free=True)  # fmt: skip
         secs["scp"] = time.perf_counter() - t0
         return CaseBox(lo, hi, x0, W, "optctrl", "V box by SCP with W = {0}", secs)
-    Vb = as_box(V, model.p, "V")
+    Vb = as_box(V, model.p, "V", exact=True)
     V_lo, V_hi = Vb.lo, Vb.hi
     t0 = time.perf_counter()
     ps = trace_disturbances(model, case, method="perstep", V=V, options=options)
@@ -435,7 +435,7 @@ def step1_trace(model, case, V, method, options):
         return res, "step1_method='perstep'"
     if res.conformant:
         return res, "per-step trace within V"
-    Vb = as_box(V, model.p, "V")
+    Vb = as_box(V, model.p, "V", exact=True)
     ch, when, margin = res.worst()
     inf = np.full(model.q, np.inf)
     reason = "per-step trace " + describe_violation(model, ch, margin, when, -inf, inf, Vb.lo, Vb.hi)

@@ -154,7 +154,7 @@ def pareto_front(model, suite, V, W_start, check: str = "reachset", iterations: 
         raise OptionsError(f"check must be 'reachset' or 'trace', got {check!r}")
     if int(iterations) != iterations or iterations < 1:
         raise OptionsError(f"iterations must be a positive integer, got {iterations!r}")
-    Vb = as_box(V, model.p, "V")
+    Vb = as_box(V, model.p, "V", exact=check == "trace")
     Vbox = Interval(Vb.lo, Vb.hi)
     Wb = as_box(W_start, model.q, "W_start")
     W_start = Interval(Wb.lo, Wb.hi)

@@ -407,7 +407,7 @@ def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, worke
     workers = check_workers(workers, "synthesize_W: workers")
     cases = suite_cases(suite, "synthesize_W")
     t_all = time.perf_counter()
-    Vb = as_box(V, model.p, "V")
+    Vb = as_box(V, model.p, "V", exact=True)
     Vbox = Interval(Vb.lo, Vb.hi)
     if workers is not None and pool is None and executor is None:
         workers = min(int(workers), max(len(cases), 1))

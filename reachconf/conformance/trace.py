@@ -434,7 +434,7 @@ def trace_conformance(model, case, W, V, method: str = "auto", options: TraceOpt
     ----------
     model : Model
     case : TestCase
-    W, V : Interval or Zonotope (their interval hulls are used), or None for ``{0}``
+    W, V : Interval, Zonotope that is a box (else SetArgumentError: a hull is no W), or None for ``{0}``
     method : {"auto", "perstep", "optctrl"}, default "auto"
         DISTURBANCETRACE by the per-step fit (section 3.2.1, eqs. 25–27), by
         the optimal-control QP (Alg. 2, eqs. 29–41), or "auto": the per-step
@@ -472,9 +472,9 @@ def trace_conformance(model, case, W, V, method: str = "auto", options: TraceOpt
     if _unbounded:
         W_lo, W_hi = np.full(model.q, -np.inf), np.full(model.q, np.inf)
     else:
-        Wb = as_box(W, model.q, "W")
+        Wb = as_box(W, model.q, "W", exact=True)
         W_lo, W_hi = Wb.lo, Wb.hi
-    Vb = as_box(V, model.p, "V")
+    Vb = as_box(V, model.p, "V", exact=True)
     V_lo, V_hi = Vb.lo, Vb.hi
     per, fixed = trace_bytes_per_sample(model, options, method)
     check_memory(f"trace conformance of case {name!r}", t.size, per, fixed,

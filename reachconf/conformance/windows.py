@@ -95,7 +95,8 @@ def verdict_in_windows(model, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, substeps,
     ``Wt`` has ``(K-1) r`` rows (``r`` disturbances per sample interval).
     Margins: disturbance channel ``w`` -> smallest ``min(w - lo, hi - w)``;
     output ``y`` -> smallest distance of ``v = y - h(x)`` to V's bounds minus
-    the integration-error estimate mapped to the outputs.
+    the integration-error estimate mapped to the outputs (by ``|C|`` for an
+    affine ``h``, else by twice ``|dh/dx|`` at the sample).
     """
     K = t.size
     comp = model.compiled()
@@ -126,8 +127,14 @@ def verdict_in_windows(model, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, substeps,
             Xs = X2[idx][first:]
             err = (np.abs(X2[idx] - X1[idx]) * (16.0 / 15.0) + 1e-12 * (1 + np.abs(X2[idx])))[first:]
             ts = t[a + first : b + 1]
-            Vt = Y[a + first : b + 1] - evaluate_outputs(model, Xs, U[a + first : b + 1])
-            yerr = err @ absC.T if absC is not None else np.max(err, axis=1, keepdims=True) * np.ones((1, p)) * 10.0
+            if absC is not None:
+                Vt = Y[a + first : b + 1] - evaluate_outputs(model, Xs, U[a + first : b + 1])
+                yerr = err @ absC.T
+            else:  # the state error through |dh/dx| (twice: the Jacobian changes along the error's segment);
+                # it was 10 x the largest state error, whatever the output's gain (1e4: wrongly "conformant")
+                Yh, J = evaluate_outputs(model, Xs, U[a + first : b + 1], jacobian=True)
+                Vt = Y[a + first : b + 1] - Yh
+                yerr = 2.0 * np.einsum("kpn,kn->kp", np.abs(J), err)
             if not np.all(np.isfinite(Xs)):
                 out.finite = False
             for i, nm in enumerate(names_v):

@@ -1,9 +1,11 @@
 """Batch point containment in zonotopes, exact up to a stated tolerance.
 
 A point ``p`` is inside ``Z(c, G)`` iff some ``b`` with ``|b|_inf <= 1 + tol``
-satisfies ``|G b - (p - c)|_inf <= tol * s`` with ``s = max(1, max_i sum_j |G_ij|)``
-(the zonotope norm with a small absolute slack so that degenerate zonotopes
-are handled).  Strategy for many points: reject outside the interval hull,
+satisfies ``|G b - (p - c)|_inf <= tol * s`` with
+``s = max(max_i sum_j |G_ij|, 1e-5 max(|c|_inf, |p|_inf))`` (the zonotope norm
+with a small slack so that degenerate zonotopes are handled; relative to the
+set's size and the numbers' magnitude, so that a set of tiny numbers is not
+swallowed by it; the tests run on the problem divided by ``s``).  Strategy for many points: reject outside the interval hull,
 in 2-D use the polygon's half-spaces, otherwise run the compiled simplex of
 :mod:`reachconf_kernels.containment`, whose every answer carries a checked
 certificate (a coefficient vector inside, a separating direction outside);
@@ -15,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from reachconf_kernels.containment import contains_batch
+from reachconf_kernels.containment import REL_MAGNITUDE, contains_batch
 
 __all__ = ["contains_points", "contains_points_lp"]
 
@@ -29,8 +31,8 @@ def contains_points_lp(c, G, P, tol=1e-9):
     from scipy.optimize import linprog
 
     n, m = G.shape
-    s = max(1.0, float(np.max(np.sum(np.abs(G), axis=1))) if m else 1.0)
-    slack = tol * s
+    c, G, P, _ = _normalized(c, G, P)
+    slack = tol
     out = np.zeros(P.shape[0], dtype=bool)
     if m == 0:
         return np.all(np.abs(P - c) <= slack, axis=1)
@@ -70,25 +72,44 @@ def _contains_2d(c, G, P, tol):
     return np.all(P @ normals.T <= scaled + 1e-15 * s, axis=1)
 
 
+def _normalized(c, G, P):
+    """``(0, G / s, (P - c) / s, s)``: the problem in units of its tolerance scale (module docstring).
+
+    ``s`` is one number for all points: the largest of their scales (the points
+    that matter lie in the set's interval hull, whose scales barely differ;
+    one far away is rejected by the hull either way).  ``s = 0`` (all zero)
+    leaves the numbers as they are.
+    """
+    c = np.asarray(c, dtype=float)
+    G = np.asarray(G, dtype=float)
+    P = np.atleast_2d(np.asarray(P, dtype=float))
+    rmax = float(np.max(np.sum(np.abs(G), axis=1))) if G.size else 0.0
+    near = np.all(np.abs(P - c) <= 2.0 * np.sum(np.abs(G), axis=1) + REL_MAGNITUDE * np.abs(c), axis=1)
+    mag = max(float(np.max(np.abs(c))) if c.size else 0.0, float(np.max(np.abs(P[near]))) if near.any() else 0.0)
+    s = max(rmax, REL_MAGNITUDE * mag)
+    if s == 0.0:
+        s = 1.0
+    return np.zeros_like(c), G / s, (P - c) / s, s
+
+
 def contains_points(c, G, P, tol=1e-9):
     """Boolean per row of ``P``: is the point in ``Z(c, G)`` (up to ``tol``, see module docstring)."""
     c = np.asarray(c, dtype=float)
     G = np.asarray(G, dtype=float)
     P = np.atleast_2d(np.asarray(P, dtype=float))
+    c0, Gn, D, _ = _normalized(c, G, P)  # the hull and the polygon in units of the tolerance scale
     N = P.shape[0]
     n, m = G.shape
-    s = max(1.0, float(np.max(np.sum(np.abs(G), axis=1))) if m else 1.0)
-    D = P - c
-    r = np.sum(np.abs(G), axis=1)
+    r = np.sum(np.abs(Gn), axis=1)
     out = np.zeros(N, dtype=bool)
-    cand = np.all(np.abs(D) <= r * (1 + tol) + tol * s, axis=1)
+    cand = np.all(np.abs(D) <= r * (1 + tol) + tol, axis=1)
     if not cand.any():
         return out
     if m == 0:
         out[cand] = True
         return out
     if n == 2:
-        res = _contains_2d(c, G, P[cand], tol)
+        res = _contains_2d(c0, Gn, D[cand], tol)
         if res is not None:
             out[np.nonzero(cand)[0]] = res
             return out

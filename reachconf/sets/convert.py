@@ -16,7 +16,7 @@ from reachconf.sets.core import Interval, Zonotope
 __all__ = ["as_box", "as_zonotope"]
 
 
-def as_box(S, dim: int | None = None, name: str = "set") -> Interval:
+def as_box(S, dim: int | None = None, name: str = "set", exact: bool = False) -> Interval:
     """The interval hull of a set argument, checked against the dimension the caller needs.
 
     Parameters
@@ -27,6 +27,10 @@ def as_box(S, dim: int | None = None, name: str = "set") -> Interval:
         Required dimension.
     name : str
         Argument name for messages (``"W"``, ``"V"``).
+    exact : bool
+        The caller needs the set itself, not a hull (a trace within the hull
+        need not lie in the set): a zonotope that is not a box (a generator
+        with more than one non-zero entry) is an error.
 
     Returns
     -------
@@ -36,13 +40,17 @@ def as_box(S, dim: int | None = None, name: str = "set") -> Interval:
     Raises
     ------
     SetArgumentError
-        If ``S`` is not a reachconf set or has another dimension.
+        If ``S`` is not a reachconf set or has another dimension, or with
+        ``exact`` if it is a zonotope that is not a box.
     """
     if S is None:
         if dim is None:
             raise SetArgumentError(f"{name} is None and no dimension is given")
         return Interval(np.zeros(dim), np.zeros(dim))
     if isinstance(S, Zonotope):
+        if exact and np.any(np.count_nonzero(S.generators, axis=0) > 1):
+            raise SetArgumentError(f"{name} is a zonotope that is not a box: its interval hull would accept traces "
+                                   f"outside it; pass {name}.interval() to check against the hull")  # fmt: skip
         S = S.interval()
     if not isinstance(S, Interval):
         raise SetArgumentError(f"{name} must be a reachconf Interval or Zonotope, got {type(S).__name__}")

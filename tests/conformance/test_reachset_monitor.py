@@ -95,3 +95,23 @@ def test_kernel_statuses_match_reference_lp():
     first = int(np.nonzero(st == 0)[0][0])
     np.testing.assert_array_equal(stopped[: first + 1], st[: first + 1])
     assert np.all(stopped[first + 1 :] == -2)
+
+
+@pytest.mark.parametrize("scale", [1e-12, 1e-9, 1.0, 1e6])
+@pytest.mark.parametrize("keep_tube", [True, False])
+def test_verdict_does_not_depend_on_the_units(scale, keep_tube):
+    """Eq. 43 on data of order 1e-12 .. 1e6: exact data conformant, a jump of 1000 V not.
+
+    The containment slack was an absolute 1e-9 (``max(1, ...)`` scale): data
+    of order 1e-9 were "conformant" whatever the jump.
+    """
+    m = rc.Model(name="decay_units", states=("x",), disturbances=("w",), dynamics=lambda s: [-0.5 * s.x + s.w])
+    t = np.arange(50) * 0.1
+    x = scale * np.exp(-0.5 * t)
+    W, V = rc.Interval([0.0], [0.0]), rc.Interval([-1e-4 * scale], [1e-4 * scale])
+    exact = TestCase("exact", "g", t, np.zeros((50, 0)), x[:, None], (), ("x",))
+    jump = TestCase("jump", "g", t, np.zeros((50, 0)), (x + np.r_[np.zeros(49), 0.1 * scale])[:, None], (), ("x",))
+    assert reachset_conformance(m, exact, W, V, keep_tube=keep_tube).conformant
+    res = reachset_conformance(m, jump, W, V, keep_tube=keep_tube)
+    assert not res.conformant and res.verdict.value == "not_conformant"
+    assert res.first_violation_time == pytest.approx(t[-1])

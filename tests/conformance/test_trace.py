@@ -152,3 +152,51 @@ def test_bad_input(model, suite):
         trace_conformance(model, bad, W_STAR, V_SET)
     with pytest.raises(rc.OptionsError, match="needs the measurement-error set"):
         rc.minimal_trace_bounds(model, suite)
+
+
+def test_a_zonotope_W_is_not_replaced_by_its_hull():
+    """W = {(a, a)}: x1 - x2 stays constant; data with x1 = t, x2 = -t cannot be produced.
+
+    Alg. 1 searched within W's interval hull and answered "conformant" with the
+    trace w = (0.99, -0.99), which is not in W.  A zonotope that is not a box is
+    now an error (its hull on request); one that is a box is the box.
+    """
+    m = rc.Model(name="two_integrators", states=("x1", "x2"), disturbances=("w1", "w2"),
+                 dynamics=lambda s: [s.w1, s.w2])  # fmt: skip
+    t = np.arange(21) * 0.1
+    case = TestCase("diverging", "g", t, np.zeros((21, 0)), np.column_stack([t, -t]), (), ("x1", "x2"))
+    W = rc.Zonotope([0.0, 0.0], [[1.0], [1.0]])
+    V = rc.Interval([-0.01, -0.01], [0.01, 0.01])
+    for method in ("auto", "optctrl"):
+        with pytest.raises(rc.SetArgumentError, match="W is a zonotope that is not a box"):
+            trace_conformance(m, case, W, V, method=method)
+    with pytest.raises(rc.SetArgumentError, match="V is a zonotope that is not a box"):
+        trace_conformance(m, case, W.interval(), rc.Zonotope([0.0, 0.0], [[0.01], [0.01]]))
+    hull = trace_conformance(m, case, W.interval(), V, method="optctrl")  # the hull, asked for: it admits the data
+    box = trace_conformance(m, case, rc.Zonotope([0.0, 0.0], [[1.0, 0.0], [0.0, 1.0]]), V, method="optctrl")
+    assert hull.conformant and box.conformant
+
+
+def test_integration_error_goes_through_the_output_gain():
+    """y = 1e4 x + 1e-3 x^2 (not affine), W = {0}: data from the verdict's own RK4 that no x0 reproduces.
+
+    The output's integration error was estimated as 10 x the state's, whatever
+    the gain of ``h``: the RK4 trace passed with V a third of the exact model's
+    smallest possible residual.  Now ``|dh/dx|`` maps it.
+    """
+    gain = 1e4
+    m = rc.Model(name="high_gain_output", states=("x",), disturbances=("w",), dynamics=lambda s: [-s.x + s.w],
+                 outputs=lambda s: {"y": gain * s.x + 1e-3 * s.x**2})  # fmt: skip
+    t = np.arange(12) * 1.0
+    X = simulate(m, [1.0], t, disturbances=np.zeros((12, 1)), substeps=20)
+    Y = np.array([m.h(x) for x in X])
+    x0 = np.linspace(0.999, 1.001, 20001)[:, None]  # the exact outputs h(x0 e^-t): the best x0 misses by > 1e-4
+    exact = gain * x0 * np.exp(-t) + 1e-3 * (x0 * np.exp(-t)) ** 2
+    best = np.min(np.max(np.abs(Y[:, 0] - exact), axis=1))
+    assert best > 1e-4
+    V = rc.Interval([-best / 3], [best / 3])
+    for method in ("auto", "optctrl"):
+        res = trace_conformance(m, TestCase("rk4", "g", t, np.zeros((12, 0)), Y, (), ("y",)), rc.Interval([0.0], [0.0]),
+                                V, method=method)  # fmt: skip
+        assert not res.conformant, res.margins
+        assert res.integration_error[0] > best

@@ -244,3 +244,20 @@ def test_exact_operations_are_tight(seed, n, m):
         bottom = Z.center[i] - np.abs(G[i]).sum()
         assert box.hi[i] >= top and box.hi[i] - top <= 1e-12 * (1 + abs(top))
         assert box.lo[i] <= bottom and bottom - box.lo[i] <= 1e-12 * (1 + abs(bottom))
+
+
+@pytest.mark.parametrize("scale", [1e-12, 1e-9, 1.0, 1e6])
+def test_containment_is_scale_invariant(scale):
+    """The slack is relative to the set's size: a point 10 % of the radius outside is outside at any scale."""
+    Z = Zonotope(scale * np.array([1.0, 2.0, -1.0]), scale * np.array([[1.0, 0.5, 0.0], [0.0, 1.0, 0.2],
+                                                                          [0.3, 0.0, 1.0]]))  # fmt: skip
+    inside = scale * np.array([[1.0, 2.0, -1.0], [2.5, 3.0, -0.7]])
+    outside = scale * np.array([[2.6, 2.0, -1.0], [1.0, 3.4, -1.0], [1.0, 2.0, 0.45]])
+    assert Z.contains(inside).all()
+    assert not Z.contains(outside).any()
+    assert contains_points_lp(Z.center, Z.generators, inside).all()
+    assert not contains_points_lp(Z.center, Z.generators, outside).any()
+    for p in outside[:2, :2]:  # 2-D: the polygon path
+        assert not Zonotope(Z.center[:2], Z.generators[:2, :2]).contains(p)
+    assert Zonotope(scale * np.ones(2), np.zeros((2, 1))).contains(scale * np.ones(2))
+    assert not Zonotope(scale * np.ones(2), np.zeros((2, 1))).contains(scale * np.array([1.0, 1.001]))
