@@ -213,15 +213,17 @@ def contains_batch(c, G, P, tol):
     """Status per row of ``P``: 1 inside, 0 outside, -1 undecided (see module docstring)."""
     rmax = np.max(_row_abs_sums(G)) if G.shape[0] and G.shape[1] else 0.0
     cmag = np.max(np.abs(c)) if c.size else 0.0
+    sig0 = max(rmax, REL_MAGNITUDE * cmag)
+    G0 = G / sig0 if sig0 > 0.0 else G.copy()  # scaled once for every point whose own magnitude does not raise it
     out = np.empty(P.shape[0], dtype=np.int64)
     for k in prange(P.shape[0]):
         d = P[k] - c
         pmag = np.max(np.abs(P[k])) if d.size else 0.0
-        sig = max(rmax, REL_MAGNITUDE * max(cmag, pmag))
+        sig = max(sig0, REL_MAGNITUDE * pmag)
         if sig == 0.0:
             out[k] = INSIDE if np.all(d == 0.0) else OUTSIDE
             continue
-        Gs = G / sig
+        Gs = G0 if sig == sig0 else G / sig
         ds = d / sig
         x, y, _ = _phase1(Gs, ds, tol, 1.0)
         # the certificates are checked independently of the simplex's own verdict
