@@ -242,19 +242,12 @@ def run_adaptive(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=No
                  stopped=StopIteration) -> AdaptiveRun:  # fmt: skip
     """Adaptive reach of ``model`` from ``Z0`` over the sample grid ``samples`` (see :func:`_run_once`).
 
-    When the abstraction error cannot be bounded (the set explodes), the
-    whole reach runs again with half the error budget and a quarter of the
-    splits (:data:`RETRY_SPLITS`), up to ``AdaptiveReach.budget_retries``
-    times: a tighter budget keeps the set smaller (smaller steps, more
-    splits) before it reaches the hard part.
-    Every finished run is sound; the budget used is ``tube.log.budget`` and
-    the budgets tried are in ``log.budgets_tried``.  Domain failures and the
-    step/memory limits are not retried (a smaller budget only costs more there).  When the last budget fails as
-    well, it runs once more from the start holding the step where a smaller one cannot lower the error rate
-    (:data:`reachconf_kernels.adaptive.FUTILE_SHRINK`): over budget rather than giving up.  Measured: that mode
-    carries the rate-limited closed loop of ``tests/reach/test_reach_rate_limited.py`` through its wide lane
-    change, while a chain of 20 masses with cubic springs (40 states, 10 s) fails in it at 9.8 s and is verified in
-    the ordinary mode on the same budget; so the ordinary run comes first.
+    When the abstraction error cannot be bounded (the set explodes), the whole reach runs again with half the error
+    budget and a quarter of the splits (:data:`RETRY_SPLITS`), up to ``AdaptiveReach.budget_retries`` times; when
+    the last budget fails too, once more holding the step where a smaller one cannot lower the error rate
+    (:data:`reachconf_kernels.adaptive.FUTILE_SHRINK`), over budget rather than giving up (the ordinary run first:
+    a 40-state chain of cubic springs fails held and is verified ordinarily on the same budget).  Every finished run
+    is sound; the budgets tried are in ``log.budgets_tried``.  Domain and step/memory failures are not retried.
     """
     alg, tried, held = options.alg, [], False
     while True:
@@ -264,14 +257,15 @@ def run_adaptive(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=No
         except ReachError as exc:
             retryable = exc.term not in ("domain", "steps/memory")
             tried.append(options.alg.error_budget)
-            if retryable and not held and len(tried) > alg.budget_retries:  # the last budget: once more, held
-                held = True
-            elif not retryable or held:
-                if len(tried) > 1:
-                    budgets = _budgets_text(tried, held)
-                    exc.args = (f"{exc.args[0]} (error budgets tried, each from the start: {budgets})",)
+            if not retryable or held:
+                if len(tried) > 1:  # (the held run repeats the last budget)
+                    text = ", ".join(f"{b:g}" for b in tried[:-1]) + (", and " if held else ", ") + f"{tried[-1]:g}"
+                    text += " again holding the step over budget" if held else ""
+                    exc.args = (f"{exc.args[0]} (error budgets tried, each from the start: {text})",)
                     exc.tried = {**(exc.tried or {}), "error_budgets": tried}
                 raise
+            if len(tried) > alg.budget_retries:  # the last budget failed: once more, held over budget
+                held = True
             else:
                 options = replace(options, algorithm=replace(options.alg, error_budget=0.5 * options.alg.error_budget),
                     max_splits=max(min(1, options.effective_max_splits),
@@ -281,12 +275,6 @@ def run_adaptive(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=No
             continue
         run.log.budgets_tried = np.array([*tried, options.alg.error_budget], dtype=float)
         return run
-
-
-def _budgets_text(tried, held) -> str:
-    """The error budgets tried, in order; the repeated last one named as the run held over budget."""
-    text = ", ".join(f"{b:g}" for b in (tried[:-1] if held else tried))
-    return text + (f", and {tried[-1]:g} again holding the step over budget" if held else "")
 
 
 def _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=None, progress=None,
