@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -472,6 +472,8 @@ def _adaptive(model, Z0, Wz, samples, scalar, inputs, options, monitor, stream=N
     ``chunk`` sample intervals, on :func:`~reachconf.reach_adaptive_stream.streamed_grid` for a final time.
     """
     horizon = float(samples[-1] - samples[0])
+    mag = float(np.max(np.abs(Z0.center) + np.sum(np.abs(Z0.generators), axis=1), initial=0.0))
+    options = replace(options, algorithm=options.alg.for_initial_set(mag))  # atol in the problem's units
     U = None
     if scalar and stream is not None:  # a grid to stream on; inputs given as rows act on all of it
         if not callable(inputs):
