@@ -314,7 +314,10 @@ class ReachOptions:
         normalised length; "box" halves the interval hull along its widest
         normalised axis (CORA).
     max_error : float or sequence of float, default inf
-        Abstraction-error bound per state above which the set is split.
+        Abstraction-error bound per state above which the set is split, in
+        the units of ``f`` (state per unit time, as CORA's ``maxError``: the
+        error enters the linearised system as an input); in other time units
+        it scales with them (time in ms: a thousandth of the value in s).
     max_error_iterations : int, default 25
         Iterations of the abstraction-error fixed point before giving up.
     rounding : float, default 1e-13
