@@ -84,7 +84,8 @@ def _step_counts(samples: np.ndarray, time_step: float | None, scalar_horizon: b
     horizon = samples[-1] - samples[0]
     if time_step is None:
         time_step = horizon / 100.0 if scalar_horizon else min(horizon / 100.0, float(np.min(np.diff(samples))))
-    return np.maximum(1, np.ceil(np.diff(samples) / time_step - 1e-9).astype(np.int64))
+    slack = 1e-9 + 8.0 * np.finfo(float).eps * max(abs(samples[0]), abs(samples[-1])) / time_step  # stamps' rounding
+    return np.maximum(1, np.ceil(np.diff(samples) / time_step - slack).astype(np.int64))
 
 
 def integration_steps(times, options=None) -> int:

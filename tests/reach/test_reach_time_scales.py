@@ -78,3 +78,12 @@ def test_at_between_samples_of_unix_time_stamps():
             assert bool(tube.at(t0 + dt).contains(x, tol=1e-6)), (alg, dt)
             assert tube.contains([t0 + dt], [x], output=False, tol=1e-6).inside.all()
         assert tube.at(times[3]) is tube.time_point_sets[3]
+
+
+def test_fixed_steps_at_unix_time_stamps():
+    """100-Hz samples at t0 = 1.7e9 with 0.01-s steps: one step per sample (their spacing's rounding made two)."""
+    from reachconf.reach import integration_steps
+
+    opts = rc.ReachOptions(algorithm="lin", time_step=0.01)
+    for t0 in (0.0, 1.7e9):
+        assert integration_steps(t0 + 0.01 * np.arange(101), opts) == 100
