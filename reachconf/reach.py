@@ -38,7 +38,6 @@ from reachconf.tube import ReachTube
 __all__ = ["ReachOptions", "reach", "reach_run", "ReachRun", "ReachStopped"]
 
 
-
 # ---------------------------------------------------------------------------
 # argument handling
 # ---------------------------------------------------------------------------
@@ -91,10 +90,13 @@ def _step_counts(samples: np.ndarray, time_step: float | None, scalar_horizon: b
 def integration_steps(times, options=None) -> int:
     """How many integration steps :func:`reach` takes over ``times`` with ``options`` (for memory estimates).
 
-    Counted without building the step grid (a tiny ``time_step`` is caught before it allocates).
+    Counted without building the step grid (a tiny ``time_step`` is caught before it allocates); ``"adaptive"``
+    without ``time_step``: one per sample interval and per hundredth of the horizon (not per shortest interval).
     """
-    samples = sample_times(times)
-    step = None if options is None else options.time_step
+    samples, options = sample_times(times), options or ReachOptions()
+    step = options.time_step
+    if step is None and isinstance(options.alg, AdaptiveReach):  # (a 1e-8-s interval counted 2e8 steps)
+        step = float(samples[-1] - samples[0]) / 100.0
     return int(_step_counts(samples, step, np.ndim(times) == 0).sum())
 
 
@@ -158,10 +160,8 @@ def _split(c: np.ndarray, G: np.ndarray, method: str):
         cc, GG, g = c, G, G[:, j].copy()
     G_half = GG.copy()
     G_half[:, j] = g / 2
-    return (np.ascontiguousarray(cc - g / 2), np.ascontiguousarray(G_half)), (
-        np.ascontiguousarray(cc + g / 2),
-        np.ascontiguousarray(G_half),
-    )
+    a, b, G_half = np.ascontiguousarray(cc - g / 2), np.ascontiguousarray(cc + g / 2), np.ascontiguousarray(G_half)
+    return (a, G_half), (b, G_half)
 
 
 def _push_halves(pending, options, splits, status, step, c_fail, G_fail, depth) -> bool:

@@ -87,3 +87,14 @@ def test_fixed_steps_at_unix_time_stamps():
     opts = rc.ReachOptions(algorithm="lin", time_step=0.01)
     for t0 in (0.0, 1.7e9):
         assert integration_steps(t0 + 0.01 * np.arange(101), opts) == 100
+
+
+def test_adaptive_grid_with_a_very_short_sample_interval():
+    """One sample interval of 1e-8 s among 0.5-s ones: the memory estimate counted 2e8 steps (ResourceError)."""
+    times = np.array([0.0, 0.5, 0.5 + 1e-8, 1.0, 2.0])
+    tube = rc.reach(vanderpol(), X0, times)
+    ref = rc.reach(vanderpol(), X0, np.array([0.0, 0.5, 1.0, 2.0]))
+    assert tube.time_point_sets[-1].interval().is_subset(ref.time_point_sets[-1].interval().scale(1.5))
+    sol = solve_ivp(_vdp, (0.0, 2.0), [1.55, 2.45], method="DOP853", rtol=1e-12, atol=1e-12, t_eval=times)
+    for k in range(times.size):
+        assert bool(tube.time_point_sets[k].contains(sol.y[:, k]))
