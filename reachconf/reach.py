@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -36,7 +36,6 @@ from reachconf.sets.core import Zonotope
 from reachconf.tube import ReachTube
 
 __all__ = ["ReachOptions", "reach", "reach_run", "ReachRun", "ReachStopped"]
-
 
 
 # ---------------------------------------------------------------------------
@@ -84,16 +83,20 @@ def _step_counts(samples: np.ndarray, time_step: float | None, scalar_horizon: b
     horizon = samples[-1] - samples[0]
     if time_step is None:
         time_step = horizon / 100.0 if scalar_horizon else min(horizon / 100.0, float(np.min(np.diff(samples))))
-    return np.maximum(1, np.ceil(np.diff(samples) / time_step - 1e-9).astype(np.int64))
+    slack = 1e-9 + 8.0 * np.finfo(float).eps * max(abs(samples[0]), abs(samples[-1])) / time_step  # stamps' rounding
+    return np.maximum(1, np.ceil(np.diff(samples) / time_step - slack).astype(np.int64))
 
 
 def integration_steps(times, options=None) -> int:
     """How many integration steps :func:`reach` takes over ``times`` with ``options`` (for memory estimates).
 
-    Counted without building the step grid (a tiny ``time_step`` is caught before it allocates).
+    Counted without building the step grid (a tiny ``time_step`` is caught before it allocates); ``"adaptive"``
+    without ``time_step``: one per sample interval and per hundredth of the horizon (not per shortest interval).
     """
-    samples = sample_times(times)
-    step = None if options is None else options.time_step
+    samples, options = sample_times(times), options or ReachOptions()
+    step = options.time_step
+    if step is None and isinstance(options.alg, AdaptiveReach):  # (a 1e-8-s interval counted 2e8 steps)
+        step = float(samples[-1] - samples[0]) / 100.0
     return int(_step_counts(samples, step, np.ndim(times) == 0).sum())
 
 
@@ -157,10 +160,8 @@ def _split(c: np.ndarray, G: np.ndarray, method: str):
         cc, GG, g = c, G, G[:, j].copy()
     G_half = GG.copy()
     G_half[:, j] = g / 2
-    return (np.ascontiguousarray(cc - g / 2), np.ascontiguousarray(G_half)), (
-        np.ascontiguousarray(cc + g / 2),
-        np.ascontiguousarray(G_half),
-    )
+    a, b, G_half = np.ascontiguousarray(cc - g / 2), np.ascontiguousarray(cc + g / 2), np.ascontiguousarray(G_half)
+    return (a, G_half), (b, G_half)
 
 
 def _push_halves(pending, options, splits, status, step, c_fail, G_fail, depth) -> bool:
@@ -472,6 +473,8 @@ def _adaptive(model, Z0, Wz, samples, scalar, inputs, options, monitor, stream=N
     ``chunk`` sample intervals, on :func:`~reachconf.reach_adaptive_stream.streamed_grid` for a final time.
     """
     horizon = float(samples[-1] - samples[0])
+    mag = float(np.max(np.abs(Z0.center) + np.sum(np.abs(Z0.generators), axis=1), initial=0.0))
+    options = replace(options, algorithm=options.alg.for_initial_set(mag))  # atol in the problem's units
     U = None
     if scalar and stream is not None:  # a grid to stream on; inputs given as rows act on all of it
         if not callable(inputs):

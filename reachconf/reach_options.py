@@ -21,7 +21,7 @@ of :attr:`ReachOptions.algorithm`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
@@ -186,7 +186,10 @@ class AdaptiveReach(ReachAlgorithm):
         200-3,100 (README, "From a point").  Sets wider than the floor are
         unaffected.  Smaller values: thinner tubes from points, more steps
         (``1e-4``/``1e-7``: about 8 times thinner for 2.5-3 times the
-        steps).
+        steps).  ``atol`` is used as at most ``rtol`` times the initial
+        set's largest ``|x_i|`` (:meth:`for_initial_set`): in units where the
+        states are of order 1e-8, an absolute 1e-6 let the error grow the set
+        to its own size, and Van der Pol, verified in units of 1, failed.
 
     References
     ----------
@@ -207,6 +210,15 @@ class AdaptiveReach(ReachAlgorithm):
     budget_horizon: float = 100.0
     rtol: float = 1e-3
     atol: float = 1e-6
+
+    def for_initial_set(self, magnitude: float) -> "AdaptiveReach":
+        """These parameters with ``atol`` at most ``rtol * magnitude`` (the initial set's largest ``|x_i|``).
+
+        The floor is then relative to the problem's units as ``rtol`` is; it binds only where all states start below
+        ``atol / rtol`` (1e-3 with the defaults); a set all at 0 keeps ``atol``.
+        """
+        cap = self.rtol * float(magnitude)
+        return replace(self, atol=cap) if 0.0 < cap < self.atol else self
 
     def validate(self, options: "ReachOptions") -> None:
         """Check the budget and that a fixed tensor order is 2 or 3."""
@@ -302,7 +314,10 @@ class ReachOptions:
         normalised length; "box" halves the interval hull along its widest
         normalised axis (CORA).
     max_error : float or sequence of float, default inf
-        Abstraction-error bound per state above which the set is split.
+        Abstraction-error bound per state above which the set is split, in
+        the units of ``f`` (state per unit time, as CORA's ``maxError``: the
+        error enters the linearised system as an input); in other time units
+        it scales with them (time in ms: a thousandth of the value in s).
     max_error_iterations : int, default 25
         Iterations of the abstraction-error fixed point before giving up.
     rounding : float, default 1e-13

@@ -231,7 +231,12 @@ class ReachTube:
     def at(self, t: float):
         """The set at time ``t``: the time-point set if ``t`` is a sample time, else the time-interval set."""
         t = float(t)
-        tol = 1e-9 * max(1.0, abs(t))
+        # a time given a little off a sample (its rounding) is that sample: 1e-9 of the tube's span plus a few ulps of
+        # the time stamps; it was 1e-9 of |t|, 1.7 s for Unix time stamps (the set of the nearest of 170 samples at
+        # 100 Hz), and at least 1e-9 (every set of a tube over 1e-9 s was its first sample's)
+        span = float(self.all_times[-1] - self.all_times[0])
+        tol = 1e-9 * span + 8.0 * np.finfo(float).eps * max(abs(t), abs(float(self.all_times[0])),
+                                                            abs(float(self.all_times[-1])))
         k = int(np.argmin(np.abs(self.times - t)))
         if abs(self.times[k] - t) <= tol:
             return self.time_point_sets[k]

@@ -205,13 +205,15 @@ def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
         pieces) and ``sample_step`` (piece ending at each sample, -1 if none).
     """
     P = t0.size
-    span = float(samples[-1] - samples[0])
-    tol = 1e-12 * max(1.0, abs(float(samples[-1])), span)
+    # the times are exact copies where they coincide (sample times, split times, a step's end and the next start):
+    # merged only within a few ulps of their magnitude (it was 1e-12 of at least 1: 1.7 ms for Unix time stamps,
+    # every step at time scales of 1e-12)
+    tol = 8.0 * np.finfo(float).eps * max(abs(float(samples[0])), abs(float(samples[-1])))
     live = [b for b in branches if b.rec_hi > b.rec_lo]
     starts = {b.index: t0[b.rec_lo : b.rec_hi] for b in live}
     ends = {b.index: np.append(t0[b.rec_lo + 1 : b.rec_hi], b.t_end) for b in live}
     raw = np.sort(np.concatenate([[samples[0], samples[-1]], *starts.values(), *ends.values()]))
-    grid = raw[np.concatenate([[True], np.diff(raw) > tol])]
+    grid = tl.merged_grid(raw, tol)
     mids = 0.5 * (grid[:-1] + grid[1:])
     live = sorted(live, key=lambda b: b.rec_lo)  # rows list their pieces in increasing id
     rec_lo = np.array([b.rec_lo for b in live], dtype=np.int64)

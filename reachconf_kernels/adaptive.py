@@ -313,7 +313,9 @@ def adaptive_run(
         last_rad = np.zeros(n)
         while True:
             tries += 1
-            if dt < dt_min:
+            if dt < rem:  # the step the recorded times span: t + dt is rounded (by 1.2e-7 s at Unix time stamps)
+                dt = (t + dt) - t
+            if dt < dt_min and dt < rem:  # (a sample interval shorter than dt_min is one step, not a failure)
                 state[S_MIN_DT] = min(state[S_MIN_DT], dt)
                 if state[S_FAIL_CODE] == 0.0:  # no step failed: the error rate kept growing (explosion)
                     state[S_FAIL_CODE] = RATE_GROWTH

@@ -1,13 +1,16 @@
 """Certified point-in-zonotope tests with a compiled bounded-variable simplex.
 
 ``p`` is in ``Z(c, G)`` (with tolerance ``tol``) iff some ``b`` with
-``|b|_inf <= 1 + tol`` has ``|G b - (p - c)|_inf <= tol * s`` where
-``s = max(max_i sum_j |G_ij|, REL_MAGNITUDE * max(|c|_inf, |p|_inf))``: the
-slack is relative to the set's size (and, for a set of no size, to the
-numbers' magnitude, for the rounding of ``p - c``), never an absolute amount
-that would swallow a set of tiny numbers (outputs of order 1e-9).  The test
-runs on the problem divided by ``s`` (the simplex's pivot tolerances are
-absolute); ``s = 0`` (a point at the origin) is inside only if ``p = c``.
+``|b|_inf <= 1 + tol`` has ``|(G b - (p - c))_i| <= tol * s_i`` in every row,
+``s_i = max(sum_j |G_ij|, REL_MAGNITUDE * max(|c_i|, |p_i|))``: the slack is
+relative to the set's extent in that coordinate (and, where it has none, to
+the numbers' magnitude, for the rounding of ``p - c``), never an absolute
+amount that would swallow a set of tiny numbers (outputs of order 1e-9), nor
+one set by another coordinate (one scale for all rows let a point 5 times a
+row's radius outside in a coordinate of 1e-8 pass when another was of 1e2).
+The test runs on the problem with row ``i`` divided by ``s_i`` (the
+simplex's pivot tolerances are absolute; ``s_i = 0``, a row of zeros where
+``c_i = p_i = 0``, is left as it is).
 
 For each point a phase-1 simplex solves ``G beta + S a = d + G 1`` with
 ``0 <= beta <= 2`` (``b = beta - 1``) and artificials ``a >= 0``, minimising
@@ -208,22 +211,44 @@ def _row_abs_sums(G):
     return r
 
 
+@njit(cache=True)
+def _unit_if_zero(s):
+    """``s`` with its zeros (rows of zeros where the numbers are zero) replaced by 1."""
+    out = s.copy()
+    for i in range(out.shape[0]):
+        if out[i] == 0.0:
+            out[i] = 1.0
+    return out
+
+
+@njit(cache=True)
+def _rows_divided(G, s):
+    """``G`` with row ``i`` divided by ``s[i]``."""
+    out = np.empty_like(G)
+    for i in range(G.shape[0]):
+        for j in range(G.shape[1]):
+            out[i, j] = G[i, j] / s[i]
+    return out
+
+
 @njit(cache=True, parallel=True)
 def contains_batch(c, G, P, tol):
     """Status per row of ``P``: 1 inside, 0 outside, -1 undecided (see module docstring)."""
-    rmax = np.max(_row_abs_sums(G)) if G.shape[0] and G.shape[1] else 0.0
-    cmag = np.max(np.abs(c)) if c.size else 0.0
-    sig0 = max(rmax, REL_MAGNITUDE * cmag)
-    G0 = G / sig0 if sig0 > 0.0 else G.copy()  # scaled once for every point whose own magnitude does not raise it
+    n = G.shape[0]
+    r = _row_abs_sums(G)
+    raw0 = np.empty(n)
+    for i in range(n):
+        raw0[i] = max(r[i], REL_MAGNITUDE * abs(c[i]))
+    sig0 = _unit_if_zero(raw0)
+    G0 = _rows_divided(G, sig0)  # scaled once for every point whose own magnitude does not raise it
     out = np.empty(P.shape[0], dtype=np.int64)
     for k in prange(P.shape[0]):
         d = P[k] - c
-        pmag = np.max(np.abs(P[k])) if d.size else 0.0
-        sig = max(sig0, REL_MAGNITUDE * pmag)
-        if sig == 0.0:
-            out[k] = INSIDE if np.all(d == 0.0) else OUTSIDE
-            continue
-        Gs = G0 if sig == sig0 else G / sig
+        raw = np.empty(n)
+        for i in range(n):
+            raw[i] = max(raw0[i], REL_MAGNITUDE * abs(P[k, i]))
+        sig = _unit_if_zero(raw)
+        Gs = G0 if np.all(sig == sig0) else _rows_divided(G, sig)
         ds = d / sig
         x, y, _ = _phase1(Gs, ds, tol, 1.0)
         # the certificates are checked independently of the simplex's own verdict
@@ -267,16 +292,14 @@ def contains_mapped_sequence(tp_c, tp_G, ng, C, off, v_rad, P, tol, stop_at_outs
                 j += 1
         r = _row_abs_sums(G)
         d = P[k] - c
-        mag = 0.0  # magnitude of the numbers (the terms of the centre, the point): their rounding
+        s = np.empty(p)  # per row (see the module docstring): the extent, or the magnitude of the numbers
         for i in range(p):
-            mi = abs(off[k, i]) + abs(P[k, i])
+            mi = abs(off[k, i]) + abs(P[k, i])  # the terms of the centre and the point: their rounding
             for rr in range(n):
                 mi += abs(C[i, rr] * tp_c[k, rr])
-            mag = max(mag, mi)
-        s = max(np.max(r) if p else 0.0, REL_MAGNITUDE * mag)  # see the module docstring
-        if s == 0.0:
-            s = 1.0  # all zero: d == 0 exactly, inside
-        G /= s
+            s[i] = max(r[i], REL_MAGNITUDE * mi)
+        s = _unit_if_zero(s)  # a row all zero: d_i == 0 exactly
+        G = _rows_divided(G, s)
         d /= s
         r /= s
         inside_hull = True

@@ -10,12 +10,10 @@ From the sympy expressions of ``f`` and ``h`` this module derives
   ``1/6 T(xi)[d, d, d]``), and ``f`` over a box (``f_iv``),
 * ``h`` and its Jacobian (point and interval),
 
-applies common-subexpression elimination, writes the result as a real Python
-module into a cache folder and compiles it with ``numba.njit(cache=True)`` with
-the fixed signatures of :mod:`reachconf_kernels.signatures`.  The file name is
-a hash of the expressions, the names, the package version and this
-generator's version, so a second process imports the module and loads numba's
-on-disk cache without recompiling.
+applies common-subexpression elimination, writes the result as a real Python module into a cache folder and
+compiles it with ``numba.njit(cache=True)`` with the fixed signatures of :mod:`reachconf_kernels.signatures`.
+The file name is a hash of the expressions, the names, the package version and this generator's version, so
+a second process imports the module and loads numba's on-disk cache without recompiling.
 
 Remainders (``remainder=``, :mod:`reachconf.model.remainders`):
 
@@ -67,7 +65,7 @@ __all__ = ["CompiledModel", "compile_model", "cache_dir", "model_hash", "generat
            "GENERATOR_VERSION", "REMAINDERS"]  # fmt: skip
 
 #: Bump when the generated code changes meaning: old cache entries are then ignored.
-GENERATOR_VERSION = "2"
+GENERATOR_VERSION = "3"
 #: ways to bound the Lagrange remainders (see the module docstring)
 REMAINDERS = ("taylor", "tensor")
 
@@ -84,8 +82,9 @@ class CompiledModel:
     Attributes
     ----------
     f, jac, h, jac_h, hess : numba dispatchers (point evaluation)
-    f_iv, jac_h_iv : interval evaluation (``f_iv(zlo, zhi, p, outlo, outhi)``, return a status);
-        ``f_iv`` of a ``"taylor"`` build is a Python function calling the tape kernel
+    f_iv, h_iv, jac_h_iv : interval evaluation (``f_iv(zlo, zhi, p, outlo, outhi)``, return a status);
+        ``f_iv`` of a ``"taylor"`` build is a Python function calling the tape kernel; ``h_iv`` encloses
+        ``h`` at a point with its rounding (an output set's centre)
     lagrange_iv : numba dispatcher
         Remainder bounds, signature ``IV_REMAINDER`` of
         :mod:`reachconf_kernels.signatures` (order 3 of a ``"tensor"`` build with
@@ -120,6 +119,7 @@ class CompiledModel:
     hess: object
     f_iv: object
     hess_iv: object = None
+    h_iv: object = None
     jac_h_iv: object = None
     lagrange_iv: object = None
     third: object = None
@@ -139,7 +139,7 @@ class CompiledModel:
 
     def dispatchers(self):
         """All compiled dispatchers (for cache statistics)."""
-        names = ("f", "jac", "h", "jac_h", "hess", "f_iv", "hess_iv", "jac_h_iv", "third", "third_iv", "lagrange_iv")
+        names = "f jac h jac_h hess f_iv hess_iv h_iv jac_h_iv third third_iv lagrange_iv".split()
         return {k: getattr(self, k) for k in names if hasattr(getattr(self, k), "stats")}
 
 
@@ -271,6 +271,7 @@ def compile_model(model, order: int = 2, remainder: str = "taylor") -> CompiledM
         hess=module.hess,
         f_iv=module.f_iv if tape is None else partial(range_enclosure, tape.ops, tape.consts, tape.outs, tape.segments),
         hess_iv=getattr(module, "hess_iv", None),
+        h_iv=module.h_iv,
         jac_h_iv=module.jac_h_iv,
         lagrange_iv=module.lagrange_iv,
         third=getattr(module, "third", None),
@@ -475,6 +476,7 @@ def generate_source(model, order: int, remainder: str = "taylor"):
             hess_targets.append((f"{i}, {a}, {b}", e))
             hess_pattern[i, a, b] = True
     parts.append(point("hess", "POINT_T3", hess_targets))
+    parts.append(interval("h_iv", "IV_VEC", [(str(i), e) for i, e in enumerate(h)]))
     parts.append(interval("jac_h_iv", "IV_MAT", jacobian(p_out, jac_h)))
     meta = {"hess_pattern": hess_pattern}
     if not tensor:

@@ -101,15 +101,20 @@ def output_enclosure(model, S, u=None):
     st = comp.jac_h_iv(zlo, zhi, model.param_vector, Jlo, Jhi)
     if st != 0:
         raise ReachError(f"output map of model {model.name!r}: {comp.guards[st - 1]}")
-    hc = np.empty(model.p)
-    comp.h(np.concatenate([S.center, u, np.zeros(model.q)]), model.param_vector, hc)
+    # h at the centre as an interval: a float evaluation may lose far more than a few ulps of the result to
+    # cancellation (x^2 - y^2 at x, y ~ 1e4 of 1e-12 apart: 1e-4 of it; the allowance was 1e-14 of the result)
+    zc = np.concatenate([S.center, u, np.zeros(model.q)])
+    hlo, hhi = np.empty(model.p), np.empty(model.p)
+    st = comp.h_iv(zc, zc, model.param_vector, hlo, hhi)
+    if st != 0:
+        raise ReachError(f"output map of model {model.name!r}: {comp.guards[st - 1]}")
+    hc = 0.5 * hlo + 0.5 * hhi
     Jc = 0.5 * (Jlo + Jhi)[:, : model.n]
     Jr = 0.5 * (Jhi - Jlo)[:, : model.n]
     c, G, rad = interval_matrix_times_zonotope(
         np.ascontiguousarray(Jc), np.ascontiguousarray(Jr), np.zeros(model.n), np.array(S.generators)
     )
-    # h(c) itself is a float evaluation: allow its rounding
-    rad = rad + 1e-14 * (np.abs(hc) + 1e-300)
+    rad = rad + np.nextafter(np.maximum(hc - hlo, hhi - hc), np.inf) + 1e-14 * (np.abs(hc) + 1e-300)
     gens = np.hstack([G, np.diag(rad)])
     return Zonotope(hc + c, gens)
 

@@ -1,11 +1,12 @@
 """Batch point containment in zonotopes, exact up to a stated tolerance.
 
 A point ``p`` is inside ``Z(c, G)`` iff some ``b`` with ``|b|_inf <= 1 + tol``
-satisfies ``|G b - (p - c)|_inf <= tol * s`` with
-``s = max(max_i sum_j |G_ij|, 1e-5 max(|c|_inf, |p|_inf))`` (the zonotope norm
+satisfies ``|(G b - (p - c))_i| <= tol * s_i`` in every row, with
+``s_i = max(sum_j |G_ij|, 1e-5 max(|c_i|, |p_i|))`` (the zonotope norm
 with a small slack so that degenerate zonotopes are handled; relative to the
-set's size and the numbers' magnitude, so that a set of tiny numbers is not
-swallowed by it; the tests run on the problem divided by ``s``).  Strategy for many points: reject outside the interval hull,
+set's extent and the numbers' magnitude in each coordinate, so that a set of
+tiny numbers, or a coordinate of tiny numbers beside large ones, is not
+swallowed by it; the tests run on the problem with row ``i`` divided by ``s_i``).  Strategy for many points: reject outside the interval hull,
 in 2-D use the polygon's half-spaces, otherwise run the compiled simplex of
 :mod:`reachconf_kernels.containment`, whose every answer carries a checked
 certificate (a coefficient vector inside, a separating direction outside);
@@ -75,21 +76,20 @@ def _contains_2d(c, G, P, tol):
 def _normalized(c, G, P):
     """``(0, G / s, (P - c) / s, s)``: the problem in units of its tolerance scale (module docstring).
 
-    ``s`` is one number for all points: the largest of their scales (the points
-    that matter lie in the set's interval hull, whose scales barely differ;
-    one far away is rejected by the hull either way).  ``s = 0`` (all zero)
-    leaves the numbers as they are.
+    ``s`` holds one number per coordinate for all points: the largest of their
+    scales in it (the points that matter lie in the set's interval hull, whose
+    scales barely differ; one far away is rejected by the hull either way).
+    ``s_i = 0`` (the coordinate all zero) leaves its numbers as they are.
     """
     c = np.asarray(c, dtype=float)
     G = np.asarray(G, dtype=float)
     P = np.atleast_2d(np.asarray(P, dtype=float))
-    rmax = float(np.max(np.sum(np.abs(G), axis=1))) if G.size else 0.0
-    near = np.all(np.abs(P - c) <= 2.0 * np.sum(np.abs(G), axis=1) + REL_MAGNITUDE * np.abs(c), axis=1)
-    mag = max(float(np.max(np.abs(c))) if c.size else 0.0, float(np.max(np.abs(P[near]))) if near.any() else 0.0)
-    s = max(rmax, REL_MAGNITUDE * mag)
-    if s == 0.0:
-        s = 1.0
-    return np.zeros_like(c), G / s, (P - c) / s, s
+    r = np.sum(np.abs(G), axis=1)
+    near = np.all(np.abs(P - c) <= 2.0 * r + REL_MAGNITUDE * np.abs(c), axis=1)
+    mag = np.maximum(np.abs(c), np.max(np.abs(P[near]), axis=0) if near.any() else 0.0)
+    s = np.maximum(r, REL_MAGNITUDE * mag)
+    s[s == 0.0] = 1.0
+    return np.zeros_like(c), G / s[:, None], (P - c) / s, s
 
 
 def contains_points(c, G, P, tol=1e-9):

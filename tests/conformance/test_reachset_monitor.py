@@ -115,3 +115,14 @@ def test_verdict_does_not_depend_on_the_units(scale, keep_tube):
     res = reachset_conformance(m, jump, W, V, keep_tube=keep_tube)
     assert not res.conformant and res.verdict.value == "not_conformant"
     assert res.first_violation_time == pytest.approx(t[-1])
+
+
+def test_kernel_slack_is_per_output():
+    """Outputs of 1e-8 and 1e2 in one set: a measurement 5 radii outside in the small output is outside."""
+    c = np.zeros((2, 2))
+    G = np.zeros((2, 2, 2))
+    G[:, 0, 0], G[:, 1, 1], G[:, 1, 0] = 1e-8, 100.0, 1e-9
+    C, off, v_rad = np.eye(2), np.zeros((2, 2)), np.zeros(2)
+    P = np.array([[5e-8, 0.0], [0.9e-8, 0.0]])
+    st = contains_mapped_sequence(c, G, np.array([2, 2]), C, off, v_rad, P, 1e-9, False)
+    np.testing.assert_array_equal(st, [0, 1])

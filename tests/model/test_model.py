@@ -197,3 +197,24 @@ def test_cache_second_process_does_not_recompile(tmp_path):
     first, second = runs
     assert not first["from_cache"] and first["misses"] > 0
     assert second["from_cache"] and second["misses"] == 0 and second["hits"] > 0
+
+
+def test_output_enclosure_holds_h_at_the_centre_despite_cancellation():
+    """``h = x^2 - y^2`` at points x, y ~ 1e4 of 1e-12 apart: the float h(c) is 1e-4 of the result off.
+
+    The enclosure allowed 1e-14 of the result for the rounding of h(c); every one of these points' exact
+    outputs was outside its own output set.
+    """
+    from fractions import Fraction
+
+    from reachconf.model.outputs import output_enclosure
+
+    m = rc.Model(name="hq", states=("x", "y"), dynamics=lambda s: [0 * s.x, 0 * s.y],
+                 outputs=lambda s: {"h": s.x**2 - s.y**2})  # fmt: skip
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        x = 1e4 * (1 + rng.random())
+        y = x * (1 - 1e-12 * rng.random())
+        O = output_enclosure(m, rc.Zonotope(np.array([x, y]), np.zeros((2, 0))))
+        exact = Fraction(x) ** 2 - Fraction(y) ** 2
+        assert abs(Fraction(O.center[0]) - exact) <= Fraction(np.abs(O.generators).sum())

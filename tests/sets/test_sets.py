@@ -261,3 +261,27 @@ def test_containment_is_scale_invariant(scale):
         assert not Zonotope(Z.center[:2], Z.generators[:2, :2]).contains(p)
     assert Zonotope(scale * np.ones(2), np.zeros((2, 1))).contains(scale * np.ones(2))
     assert not Zonotope(scale * np.ones(2), np.zeros((2, 1))).contains(scale * np.array([1.0, 1.001]))
+
+
+@pytest.mark.parametrize("n", [2, 3])
+def test_containment_slack_is_per_coordinate(n):
+    """A coordinate of 1e-8 beside one of 1e2: a point 5 radii outside in the small one is outside.
+
+    With one scale for all coordinates (the largest extent) the slack was 1e-9 * 100 = 1e-7 in every one.
+    """
+    c = np.zeros(n)
+    G = np.diag([1e-8] + [100.0] * (n - 1))
+    rot = np.eye(n)
+    rot[1:, 0] = 1e-9  # correlated: not the hull's decision alone
+    Z = Zonotope(c, rot @ G)
+    outside = np.array([[5e-8] + [0.0] * (n - 1), [-2e-8] + [50.0] * (n - 1)])
+    inside = np.array([[0.9e-8] + [0.0] * (n - 1), [-0.5e-8] + [50.0] * (n - 1)])
+    assert not Z.contains(outside).any()
+    assert Z.contains(inside).all()
+    assert not contains_points_lp(Z.center, Z.generators, outside).any()
+    assert contains_points_lp(Z.center, Z.generators, inside).all()
+    if n == 3:  # the compiled kernel (n > 2 skips the polygon)
+        from reachconf_kernels.containment import contains_batch
+
+        st = contains_batch(Z.center, np.ascontiguousarray(Z.generators), np.vstack([outside, inside]), 1e-9)
+        np.testing.assert_array_equal(st, [0, 0, 1, 1])
