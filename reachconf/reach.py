@@ -33,6 +33,7 @@ from reachconf.reach_errors import fixed_step_failure
 from reachconf.reach_options import AdaptiveReach, ReachOptions
 from reachconf.sets.convert import as_zonotope
 from reachconf.sets.core import Zonotope
+from reachconf.timestamps import stamp_rounding
 from reachconf.tube import ReachTube
 
 __all__ = ["ReachOptions", "reach", "reach_run", "ReachRun", "ReachStopped"]
@@ -83,7 +84,7 @@ def _step_counts(samples: np.ndarray, time_step: float | None, scalar_horizon: b
     horizon = samples[-1] - samples[0]
     if time_step is None:
         time_step = horizon / 100.0 if scalar_horizon else min(horizon / 100.0, float(np.min(np.diff(samples))))
-    slack = 1e-9 + 8.0 * np.finfo(float).eps * max(abs(samples[0]), abs(samples[-1])) / time_step  # stamps' rounding
+    slack = 1e-9 + stamp_rounding(samples[0], samples[-1]) / time_step  # (a count of ulps of the stamps)
     return np.maximum(1, np.ceil(np.diff(samples) / time_step - slack).astype(np.int64))
 
 
@@ -94,9 +95,8 @@ def integration_steps(times, options=None) -> int:
     without ``time_step``: one per sample interval and per hundredth of the horizon (not per shortest interval).
     """
     samples, options = sample_times(times), options or ReachOptions()
-    step = options.time_step
-    if step is None and isinstance(options.alg, AdaptiveReach):  # (a 1e-8-s interval counted 2e8 steps)
-        step = float(samples[-1] - samples[0]) / 100.0
+    step = options.time_step  # adaptive without one: a hundredth of the horizon (a 1e-8-s interval counted 2e8 steps)
+    step = float(samples[-1] - samples[0]) / 100.0 if step is None and isinstance(options.alg, AdaptiveReach) else step
     return int(_step_counts(samples, step, np.ndim(times) == 0).sum())
 
 

@@ -18,6 +18,7 @@ from reachconf.reach_log import ReachLog
 from reachconf.sets.convert import as_zonotope
 from reachconf.sets.core import Interval, Zonotope
 from reachconf.sets.union import SetUnion
+from reachconf.timestamps import stamp_rounding
 from reachconf.tube_pieces import PieceSets, piece_layout
 
 __all__ = ["ReachTube", "SetUnion", "Containment"]
@@ -235,8 +236,7 @@ class ReachTube:
         # the time stamps; it was 1e-9 of |t|, 1.7 s for Unix time stamps (the set of the nearest of 170 samples at
         # 100 Hz), and at least 1e-9 (every set of a tube over 1e-9 s was its first sample's)
         span = float(self.all_times[-1] - self.all_times[0])
-        tol = 1e-9 * span + 8.0 * np.finfo(float).eps * max(abs(t), abs(float(self.all_times[0])),
-                                                            abs(float(self.all_times[-1])))
+        tol = 1e-9 * span + stamp_rounding(t, self.all_times[0], self.all_times[-1])
         k = int(np.argmin(np.abs(self.times - t)))
         if abs(self.times[k] - t) <= tol:
             return self.time_point_sets[k]

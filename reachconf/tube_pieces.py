@@ -20,6 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from reachconf.errors import ReachError
+from reachconf.timestamps import stamp_rounding
 from reachconf_kernels import tube_layout as tl
 
 __all__ = ["PieceSets", "PieceLayout", "piece_layout"]
@@ -208,7 +209,7 @@ def piece_layout(samples, scalar, t0, branches) -> PieceLayout:
     # the times are exact copies where they coincide (sample times, split times, a step's end and the next start):
     # merged only within a few ulps of their magnitude (it was 1e-12 of at least 1: 1.7 ms for Unix time stamps,
     # every step at time scales of 1e-12)
-    tol = 8.0 * np.finfo(float).eps * max(abs(float(samples[0])), abs(float(samples[-1])))
+    tol = stamp_rounding(samples[0], samples[-1])
     live = [b for b in branches if b.rec_hi > b.rec_lo]
     starts = {b.index: t0[b.rec_lo : b.rec_hi] for b in live}
     ends = {b.index: np.append(t0[b.rec_lo + 1 : b.rec_hi], b.t_end) for b in live}

@@ -17,9 +17,9 @@ MAX_LINES = 500
 
 #: layers from the bottom up; a module may import its own layer and those below
 LAYERS = (
-    ("kernels, errors, registries, argument checks, verdicts", ("reachconf_kernels", "reachconf.errors",
-                                                                "reachconf.registry", "reachconf.checks",
-                                                                "reachconf.verdict")),
+    ("kernels, errors, registries, argument checks, verdicts, time stamps",
+     ("reachconf_kernels", "reachconf.errors", "reachconf.registry", "reachconf.checks", "reachconf.verdict",
+      "reachconf.timestamps")),
     ("sets, test suites, process pools, resource checks", ("reachconf.sets", "reachconf.io", "reachconf.runner",
                                                             "reachconf.budget", "reachconf.blas_threads")),
     ("model, drawing", ("reachconf.model", "reachconf.plot")),

@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from reachconf.errors import DataError
+from reachconf.timestamps import stamp_rounding
 
 __all__ = ["case_segments"]
 
@@ -23,7 +24,7 @@ def case_segments(case, length, partial: bool = True, step=None) -> list:
                         f"({length:g} s): samples between them would be in none")  # fmt: skip
     t = case.t
     # a sample on a boundary belongs to both segments despite rounding (of t0 + k step and of large stamps)
-    tol = 1e-9 * max(1.0, length) + 8 * np.finfo(float).eps * max(abs(float(t[0])), abs(float(t[-1])))
+    tol = 1e-9 * max(1.0, length) + stamp_rounding(t[0], t[-1])
     if t[-1] - t[0] <= length + tol:  # one segment: the case itself (dropped if shorter and not partial)
         return [case] if partial or t[-1] - t[0] >= length - tol else []
     out = []
