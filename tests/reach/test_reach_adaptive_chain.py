@@ -57,3 +57,9 @@ def test_defaults_verify_the_40_state_chain_and_hold_every_sampled_trajectory():
     assert np.all(Y >= lo[None] - 1e-9) and np.all(Y <= hi[None] + 1e-9)
     for k in range(0, T.size, 60):  # the zonotopes themselves at every 60th sample (an LP per point)
         assert np.all(tube.time_point_sets[k].contains(Y[:, k], tol=1e-9)), T[k]
+    # and not vacuous: until 8 s as tight as hand-tuned "lin" (0.01-s steps: widest state 0.42; measured 0.60), and at
+    # the end the median state's width within a few times the sampled spread (measured 0.27 wide, "lin" 0.35)
+    k8 = int(np.argmin(np.abs(T - 8.0)))
+    assert np.max(hi[k8] - lo[k8]) < 1.0
+    assert np.median(hi[-1] - lo[-1]) < 0.4
+    assert np.median(hi[-1] - lo[-1]) < 20 * np.median(Y[:, -1].max(0) - Y[:, -1].min(0))
