@@ -218,3 +218,4 @@ def test_output_enclosure_holds_h_at_the_centre_despite_cancellation():
         O = output_enclosure(m, rc.Zonotope(np.array([x, y]), np.zeros((2, 0))))
         exact = Fraction(x) ** 2 - Fraction(y) ** 2
         assert abs(Fraction(O.center[0]) - exact) <= Fraction(np.abs(O.generators).sum())
+        assert np.abs(O.generators).sum() <= 4 * np.finfo(float).eps * x * x  # and tight: a few ulps of the squares
