@@ -430,7 +430,7 @@ class Zonotope:
         """Point containment: ``||p - c||_Z <= 1 + tol`` (zonotope norm), exact up to ``tol``.
 
         Points outside the interval hull are rejected at once; in 2-D the
-        polygon's half-spaces decide; otherwise a compiled simplex whose every
+        half-spaces normal to the generators decide; otherwise a compiled simplex whose every
         answer carries a checked certificate, and one LP (HiGHS) per point
         without one (:func:`reachconf.sets.containment.contains_points`).
         Returns a bool for one point, a boolean array for the rows of ``points``.

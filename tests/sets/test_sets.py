@@ -285,3 +285,31 @@ def test_containment_slack_is_per_coordinate(n):
 
         st = contains_batch(Z.center, np.ascontiguousarray(Z.generators), np.vstack([outside, inside]), 1e-9)
         np.testing.assert_array_equal(st, [0, 0, 1, 1])
+
+
+def test_containment_2d_near_parallel_generators_is_exact():
+    """2-D points outside a thin zonotope of near-parallel generators are outside (the simplex and the LP agree).
+
+    The 2-D path tested the polygon of the compacted generators, which merges generators within 1.4e-6 rad of each
+    other and boxes the rest: (2, 2) in ``Z(0, [[1, 1], [1, 1 + 1e-7]])`` (zonotope norm 2) was inside, and seeded
+    thin sets had points up to 69 % of the tolerance-widened width outside accepted.
+    """
+    from reachconf_kernels.containment import contains_batch
+
+    Z = Zonotope([0.0, 0.0], [[1.0, 1.0], [1.0, 1.0 + 1e-7]])
+    outside = np.array([[2.0, 2.0], [1.99999999, 1.99999999], [1.9999999, 1.99999998], [2.0, 2.00000005]])
+    inside = np.array([[0.0, 0.0], [2.0, 2.0 + 1e-7], [1.0, 1.0 + 5e-8], [-2.0, -2.0 - 1e-7]])
+    assert not Z.contains(outside).any() and not Z.contains(outside, tol=0.0).any()
+    assert Z.contains(inside).all()
+    assert not contains_points_lp(Z.center, Z.generators, outside).any()
+    rng = np.random.default_rng(20261127)
+    for _ in range(40):  # thin sets: generators along one direction, apart by 1e-12 .. 1e-5
+        m = int(rng.integers(2, 7))
+        G = np.outer(rng.normal(size=2), rng.normal(size=m)) + 10.0 ** rng.uniform(-12, -5) * rng.normal(size=(2, m))
+        c = rng.normal(size=2)
+        B = rng.uniform(-1, 1, size=(60, m))
+        B[np.arange(60), rng.integers(0, m, 60)] = rng.choice([-1.0, 1.0], 60) * (1 + rng.choice([1e-3, 0.1, 1.0], 60))
+        P = c + B @ G.T
+        st = contains_batch(c, np.ascontiguousarray(G), P, 1e-9)
+        got = Zonotope(c, G).contains(P)
+        assert not np.any(got & (st == 0)), "inside by the 2-D test, outside by the certified simplex"
