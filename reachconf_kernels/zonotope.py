@@ -353,32 +353,41 @@ def quad_map_mixed(c1, G1, c2, G2, Q):
 
 
 @njit(cache=True)
-def support(c, G, d):
-    """``max_{x in Z} d.x``."""
-    s = 0.0
-    for i in range(c.shape[0]):
-        s += d[i] * c[i]
+def _directional(c, G, d):
+    """``(d.c, sum_j |d.g_j|, err)``: ``err`` bounds the rounding of both sums (``gamma_k`` times the terms' sum)."""
+    n = c.shape[0]
+    m = G.shape[1]
+    mid = 0.0
+    mag = 0.0
+    for i in range(n):
+        t = d[i] * c[i]
+        mid += t
+        mag += abs(t)
+    rad = 0.0
     for j in range(G.shape[1]):
         t = 0.0
-        for i in range(c.shape[0]):
-            t += d[i] * G[i, j]
-        s += abs(t)
-    return s
+        for i in range(n):
+            a = d[i] * G[i, j]
+            t += a
+            mag += abs(a)
+        rad += abs(t)
+    # each dot product and the sums of |.| are recursive sums of at most n + m terms; products may underflow
+    err = _up((2 * n + m + 2) * _EPS * mag * (1.0 + 1e-6) + (n * (m + 1) + 1) * 5e-324)
+    return mid, rad, err
+
+
+@njit(cache=True)
+def support(c, G, d):
+    """``max_{x in Z} d.x``, rounded up."""
+    mid, rad, err = _directional(c, G, d)
+    return _up(_up(mid + rad) + err)
 
 
 @njit(cache=True)
 def bounds_along(c, G, d):
-    """``(min, max)`` of ``d.x`` over Z."""
-    mid = 0.0
-    for i in range(c.shape[0]):
-        mid += d[i] * c[i]
-    rad = 0.0
-    for j in range(G.shape[1]):
-        t = 0.0
-        for i in range(c.shape[0]):
-            t += d[i] * G[i, j]
-        rad += abs(t)
-    return mid - rad, mid + rad
+    """``(min, max)`` of ``d.x`` over Z, rounded outward."""
+    mid, rad, err = _directional(c, G, d)
+    return np.nextafter(np.nextafter(mid - rad, -np.inf) - err, -np.inf), _up(_up(mid + rad) + err)
 
 
 @njit(cache=True)

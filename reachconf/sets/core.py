@@ -401,7 +401,7 @@ class Zonotope:
         return float(zk.support(*self._cg(), np.ascontiguousarray(d)))
 
     def bounds_along(self, direction):
-        """``(min, max)`` of ``d^T x`` over the zonotope."""
+        """``(min, max)`` of ``d^T x`` over the zonotope (outward rounded)."""
         d = as_vector(direction, "direction")
         if d.size != self.dim:  # the compiled loop reads d[i] for every dimension
             raise SetError(f"direction has {d.size} entries, the zonotope {self.dim}")

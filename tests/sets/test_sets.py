@@ -313,3 +313,23 @@ def test_containment_2d_near_parallel_generators_is_exact():
         st = contains_batch(c, np.ascontiguousarray(G), P, 1e-9)
         got = Zonotope(c, G).contains(P)
         assert not np.any(got & (st == 0)), "inside by the 2-D test, outside by the certified simplex"
+
+
+def test_support_and_bounds_along_are_outward_rounded():
+    """Exactly (fractions): no point of the zonotope is beyond ``support(d)`` or ``bounds_along(d)``.
+
+    The float sums were returned as they were: with centres of 1e8 and generators of 1e-6 (seeded, 300 cases) the
+    support fell short of the exact one by up to 16 % of the set's half-width along ``d``.
+    """
+    from fractions import Fraction
+
+    rng = np.random.default_rng(20261127)
+    for _ in range(300):
+        n, m = int(rng.integers(1, 5)), int(rng.integers(0, 4))
+        c, G, d = rng.normal(size=n) * 1e8, rng.normal(size=(n, m)) * 1e-6, rng.normal(size=n)
+        Z = Zonotope(c, G)
+        dc = sum(Fraction(a) * Fraction(b) for a, b in zip(d, c))
+        rad = sum(abs(sum(Fraction(a) * Fraction(g) for a, g in zip(d, G[:, j]))) for j in range(m))
+        lo, hi = Z.bounds_along(d)
+        assert Fraction(Z.support(d)) >= dc + rad and Fraction(hi) >= dc + rad and Fraction(lo) <= dc - rad
+        assert Z.support(d) - (dc + rad) <= 1e-14 * np.abs(d) @ np.abs(c)  # and still tight (the terms' rounding)
