@@ -402,10 +402,17 @@ def compact(c, G, tol):
     n, m = G.shape
     norms = np.zeros(m)
     for j in range(m):
+        # scaled by the largest entry: the squares of entries beyond 1e154 overflowed (every norm inf, every pair
+        # "parallel", all boxed) and below 1e-162 underflowed (norm 0: dropped into the box)
+        big = 0.0
+        for i in range(n):
+            big = max(big, abs(G[i, j]))
+        if big == 0.0:
+            continue
         s = 0.0
         for i in range(n):
-            s += G[i, j] * G[i, j]
-        norms[j] = math.sqrt(s)
+            s += (G[i, j] / big) ** 2
+        norms[j] = big * math.sqrt(s)
     out = np.zeros((n, m + n))
     box = np.zeros(n)
     used = np.zeros(m, dtype=np.bool_)

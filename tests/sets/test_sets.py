@@ -333,3 +333,21 @@ def test_support_and_bounds_along_are_outward_rounded():
         lo, hi = Z.bounds_along(d)
         assert Fraction(Z.support(d)) >= dc + rad and Fraction(hi) >= dc + rad and Fraction(lo) <= dc - rad
         assert Z.support(d) - (dc + rad) <= 1e-14 * np.abs(d) @ np.abs(c)  # and still tight (the terms' rounding)
+
+
+@pytest.mark.parametrize("scale", [1e-170, 1e-100, 1.0, 1e100, 1e160])
+def test_compact_and_polygon_of_huge_and_tiny_generators(scale):
+    """The generator norms were sums of squares: beyond 1e154 they overflowed (every pair "parallel", all boxed)
+    and below 1e-162 they underflowed (all dropped into the box): the polygon was the interval hull, with vertices
+    outside the zonotope (seeded fuzz: 4.8 % of the set's extent)."""
+    G = scale * np.array([[1.0, 0.5], [0.0, 1.0]])
+    Z = Zonotope([0.0, 0.0], G)
+    assert Z.compact(0.0).generators.shape[1] == 2
+    V = Z.polygon()
+    assert V.shape == (4, 2)
+    exact = scale * np.array([[-1.5, -1.0], [0.5, -1.0], [1.5, 1.0], [-0.5, 1.0]])
+    np.testing.assert_allclose(np.sort(V, axis=0), np.sort(exact, axis=0), rtol=1e-15)
+    normals = np.array([[0.0, 1.0], [1.0, -0.5]])  # facet normals of the two generators
+    for nrm in np.vstack([normals, -normals]):
+        assert np.max(V @ nrm) <= Z.support(nrm)
+
