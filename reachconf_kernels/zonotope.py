@@ -240,7 +240,8 @@ def reduce_pca(c, G, order):
             out[:, k] = G[:, keep[k]]
         return c.copy(), out
     R = G[:, rest]
-    cov = R @ R.T
+    Rs = R / np.max(np.abs(R))  # the axes do not depend on the scale; R R^T of entries beyond 1e154 overflowed
+    cov = Rs @ Rs.T
     w, U = np.linalg.eigh(cov)
     # box in the rotated frame: U diag(sum |U^T R|) ; U orthonormal up to rounding
     T = U.T @ R

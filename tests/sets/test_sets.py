@@ -351,3 +351,16 @@ def test_compact_and_polygon_of_huge_and_tiny_generators(scale):
     for nrm in np.vstack([normals, -normals]):
         assert np.max(V @ nrm) <= Z.support(nrm)
 
+
+@pytest.mark.parametrize("scale", [1e-200, 1e-160, 1e160, 1e200])
+def test_pca_reduction_of_huge_and_tiny_generators(scale):
+    """PCA took the eigenvectors of ``R R^T``, which overflowed beyond 1e154 (numba's eigh raised LinAlgError on
+    the inf) and underflowed below 1e-162 (axes instead of principal axes): scaled by the largest entry now."""
+    rng = np.random.default_rng(20261127)
+    G = np.outer([1.0, 1.0], rng.normal(size=12)) + 0.01 * rng.normal(size=(2, 12))
+    Z = Zonotope([0.0, 0.0], scale * G)
+    R = Z.reduce(2, "pca")
+    ref = Zonotope([0.0, 0.0], G).reduce(2, "pca")
+    np.testing.assert_allclose(R.interval().hi / scale, ref.interval().hi, rtol=1e-9)
+    for d in rng.normal(size=(20, 2)):
+        assert R.support(d) >= Z.support(d) * (1 - 1e-12)
