@@ -73,11 +73,11 @@ def sample_times(times) -> np.ndarray:
 def _step_grid(samples: np.ndarray, time_step: float | None, scalar_horizon: bool):
     """Sub-steps of every sample interval: (dts, t_start, sample_of_step, step_of_sample)."""
     counts = _step_counts(samples, time_step, scalar_horizon)
-    dts = np.repeat(np.diff(samples) / counts, counts)
-    sample_of_step = np.repeat(np.arange(samples.size - 1), counts)
+    k = np.repeat(np.arange(samples.size - 1), counts)  # the sample interval of each step
     offsets = np.concatenate([[0], np.cumsum(counts)])
-    t_start = np.repeat(samples[:-1], counts) + (np.arange(dts.size) - offsets[sample_of_step]) * dts
-    return dts, t_start, sample_of_step, offsets
+    t_start = samples[k] + (np.arange(k.size) - offsets[k]) * (np.diff(samples) / counts)[k]
+    dts = np.diff(np.append(t_start, samples[-1]))  # the stamps' differences (exact for neighbours): steps cover them
+    return dts, t_start, k, offsets
 
 
 def _step_counts(samples: np.ndarray, time_step: float | None, scalar_horizon: bool) -> np.ndarray:

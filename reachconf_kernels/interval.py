@@ -155,12 +155,20 @@ def mul(alo, ahi, blo, bhi):
     return _outward4(_prod(alo, blo), _prod(alo, bhi), _prod(ahi, blo), _prod(ahi, bhi))
 
 
+@njit(cache=True, inline="always")
+def _quot(a, b):
+    # inf / inf = inf with the quotient's sign (an unbounded numerator may outgrow an unbounded denominator), not NaN
+    if math.isinf(a) and math.isinf(b):
+        return a if b > 0.0 else -a
+    return a / b
+
+
 @njit(cache=True)
 def div(alo, ahi, blo, bhi):
     """``[a] / [b]``, outward rounded; ``ZeroDivisionError`` if ``[b]`` contains 0."""
     if blo <= 0.0 <= bhi:
         raise ZeroDivisionError("interval division by an interval containing 0")
-    return _outward4(alo / blo, alo / bhi, ahi / blo, ahi / bhi)
+    return _outward4(_quot(alo, blo), _quot(alo, bhi), _quot(ahi, blo), _quot(ahi, bhi))
 
 
 @njit(cache=True)

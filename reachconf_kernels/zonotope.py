@@ -240,7 +240,8 @@ def reduce_pca(c, G, order):
             out[:, k] = G[:, keep[k]]
         return c.copy(), out
     R = G[:, rest]
-    cov = R @ R.T
+    Rs = R / np.max(np.abs(R))  # the axes do not depend on the scale; R R^T of entries beyond 1e154 overflowed
+    cov = Rs @ Rs.T
     w, U = np.linalg.eigh(cov)
     # box in the rotated frame: U diag(sum |U^T R|) ; U orthonormal up to rounding
     T = U.T @ R
@@ -353,32 +354,41 @@ def quad_map_mixed(c1, G1, c2, G2, Q):
 
 
 @njit(cache=True)
-def support(c, G, d):
-    """``max_{x in Z} d.x``."""
-    s = 0.0
-    for i in range(c.shape[0]):
-        s += d[i] * c[i]
+def _directional(c, G, d):
+    """``(d.c, sum_j |d.g_j|, err)``: ``err`` bounds the rounding of both sums (``gamma_k`` times the terms' sum)."""
+    n = c.shape[0]
+    m = G.shape[1]
+    mid = 0.0
+    mag = 0.0
+    for i in range(n):
+        t = d[i] * c[i]
+        mid += t
+        mag += abs(t)
+    rad = 0.0
     for j in range(G.shape[1]):
         t = 0.0
-        for i in range(c.shape[0]):
-            t += d[i] * G[i, j]
-        s += abs(t)
-    return s
+        for i in range(n):
+            a = d[i] * G[i, j]
+            t += a
+            mag += abs(a)
+        rad += abs(t)
+    # each dot product and the sums of |.| are recursive sums of at most n + m terms; products may underflow
+    err = _up((2 * n + m + 2) * _EPS * mag * (1.0 + 1e-6) + (n * (m + 1) + 1) * 5e-324)
+    return mid, rad, err
+
+
+@njit(cache=True)
+def support(c, G, d):
+    """``max_{x in Z} d.x``, rounded up."""
+    mid, rad, err = _directional(c, G, d)
+    return _up(_up(mid + rad) + err)
 
 
 @njit(cache=True)
 def bounds_along(c, G, d):
-    """``(min, max)`` of ``d.x`` over Z."""
-    mid = 0.0
-    for i in range(c.shape[0]):
-        mid += d[i] * c[i]
-    rad = 0.0
-    for j in range(G.shape[1]):
-        t = 0.0
-        for i in range(c.shape[0]):
-            t += d[i] * G[i, j]
-        rad += abs(t)
-    return mid - rad, mid + rad
+    """``(min, max)`` of ``d.x`` over Z, rounded outward."""
+    mid, rad, err = _directional(c, G, d)
+    return np.nextafter(np.nextafter(mid - rad, -np.inf) - err, -np.inf), _up(_up(mid + rad) + err)
 
 
 @njit(cache=True)
@@ -393,10 +403,17 @@ def compact(c, G, tol):
     n, m = G.shape
     norms = np.zeros(m)
     for j in range(m):
+        # scaled by the largest entry: the squares of entries beyond 1e154 overflowed (every norm inf, every pair
+        # "parallel", all boxed) and below 1e-162 underflowed (norm 0: dropped into the box)
+        big = 0.0
+        for i in range(n):
+            big = max(big, abs(G[i, j]))
+        if big == 0.0:
+            continue
         s = 0.0
         for i in range(n):
-            s += G[i, j] * G[i, j]
-        norms[j] = math.sqrt(s)
+            s += (G[i, j] / big) ** 2
+        norms[j] = big * math.sqrt(s)
     out = np.zeros((n, m + n))
     box = np.zeros(n)
     used = np.zeros(m, dtype=np.bool_)

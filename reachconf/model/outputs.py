@@ -20,7 +20,7 @@ import sympy as sp
 
 from reachconf.errors import ConformanceError, ReachError
 from reachconf.io.cases import case_arrays
-from reachconf.sets.core import Zonotope
+from reachconf.sets.core import Interval, Zonotope
 from reachconf.sets.union import SetUnion
 from reachconf_kernels.integrate import eval_outputs
 from reachconf_kernels.linsys import interval_matrix_times_zonotope
@@ -91,7 +91,12 @@ def output_enclosure(model, S, u=None):
     aff = affine_output(model)
     if aff is not None:
         C, D, e = aff
-        return (C @ S) + (D @ u + e)
+        # a box for the rounding of the float products and sums: C c + D u + e can cancel far below its terms (a
+        # point set's exact output was outside its own output set)
+        box = S.interval()
+        mag = np.abs(C) @ np.maximum(np.abs(box.lo), np.abs(box.hi)) + np.abs(D) @ np.abs(u) + np.abs(e)
+        rad = (model.n + model.m + 3) * np.finfo(float).eps * mag
+        return (C @ S) + (D @ u + e) + Interval(-rad, rad)
     comp = model.compiled()
     box = S.interval()
     zlo = np.concatenate([box.lo, u, np.zeros(model.q)])

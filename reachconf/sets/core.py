@@ -401,7 +401,7 @@ class Zonotope:
         return float(zk.support(*self._cg(), np.ascontiguousarray(d)))
 
     def bounds_along(self, direction):
-        """``(min, max)`` of ``d^T x`` over the zonotope."""
+        """``(min, max)`` of ``d^T x`` over the zonotope (outward rounded)."""
         d = as_vector(direction, "direction")
         if d.size != self.dim:  # the compiled loop reads d[i] for every dimension
             raise SetError(f"direction has {d.size} entries, the zonotope {self.dim}")
@@ -430,7 +430,7 @@ class Zonotope:
         """Point containment: ``||p - c||_Z <= 1 + tol`` (zonotope norm), exact up to ``tol``.
 
         Points outside the interval hull are rejected at once; in 2-D the
-        polygon's half-spaces decide; otherwise a compiled simplex whose every
+        half-spaces normal to the generators decide; otherwise a compiled simplex whose every
         answer carries a checked certificate, and one LP (HiGHS) per point
         without one (:func:`reachconf.sets.containment.contains_points`).
         Returns a bool for one point, a boolean array for the rows of ``points``.

@@ -72,6 +72,19 @@ def test_div_contains_exact(a1, a2, b1, b2):
     check_binary(iv.div, lambda x, y: x / y, a, b)
 
 
+def test_div_of_unbounded_intervals_is_unbounded_not_nan():
+    """``inf / inf`` candidates were NaN: ``[-inf, 1] / [1, inf]`` gave ``[-5e-324, 1]`` (unsound: -1e300 / 1 lies in
+    it) and ``[1, inf] / [1, inf]`` gave NaN bounds; the quotient of two unbounded ends is unbounded."""
+    inf = math.inf
+    assert iv.div(-inf, 1.0, 1.0, inf) == (-inf, iv.up(1.0))
+    lo, hi = iv.div(1.0, inf, 1.0, inf)
+    assert lo <= 0.0 and hi == inf
+    lo, hi = iv.div(-inf, inf, -inf, -2.0)
+    assert (lo, hi) == (-inf, inf)
+    lo, hi = iv.div(1.0, inf, -inf, -1.0)
+    assert lo == -inf and 0.0 <= hi
+
+
 def test_signed_zero_and_rounding_direction():
     lo, hi = iv.add(0.1, 0.1, 0.2, 0.2)
     assert mpmath.mpf(lo) < mpmath.mpf(0.1) + mpmath.mpf(0.2) < mpmath.mpf(hi)

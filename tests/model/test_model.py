@@ -219,3 +219,25 @@ def test_output_enclosure_holds_h_at_the_centre_despite_cancellation():
         exact = Fraction(x) ** 2 - Fraction(y) ** 2
         assert abs(Fraction(O.center[0]) - exact) <= Fraction(np.abs(O.generators).sum())
         assert np.abs(O.generators).sum() <= 4 * np.finfo(float).eps * x * x  # and tight: a few ulps of the squares
+
+
+def test_affine_output_enclosure_holds_the_exact_output_despite_cancellation():
+    """``y = 0.1 x - 0.3 z + 0.7 u + 0.2`` near 0 from terms of 1e6: the float ``C c + D u + e`` is ulps of the
+    terms off, and the affine path added no allowance: the exact outputs of point sets were outside their sets."""
+    from fractions import Fraction
+
+    from reachconf.model.outputs import output_enclosure
+
+    m = rc.Model(name="aff_cancel", states=("x", "z"), inputs=("u",), dynamics=lambda s: [0 * s.x, 0 * s.z],
+                 outputs=lambda s: {"y": 0.1 * s.x - 0.3 * s.z + 0.7 * s.u + 0.2})  # fmt: skip
+    C, D, e = (Fraction(0.1), Fraction(-0.3)), Fraction(0.7), Fraction(0.2)
+    rng = np.random.default_rng(20261127)
+    for _ in range(50):
+        x, z = rng.uniform(1e6, 2e6), rng.uniform(1e6, 2e6)
+        u = float((-(C[0] * Fraction(x) + C[1] * Fraction(z)) - e) / D) * (1 + 1e-15 * rng.normal())
+        for S in (rc.Zonotope([x, z], np.zeros((2, 0))), rc.Interval([x, z], [x, z])):
+            O = output_enclosure(m, S, [u])
+            exact = C[0] * Fraction(x) + C[1] * Fraction(z) + D * Fraction(u) + e
+            assert Fraction(O.interval().lo[0]) <= exact <= Fraction(O.interval().hi[0])
+            assert O.contains([float(exact)], tol=0.0)
+            assert O.interval().hi[0] - O.interval().lo[0] <= 1e-14 * 1e6  # a few ulps of the terms

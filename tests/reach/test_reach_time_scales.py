@@ -98,3 +98,20 @@ def test_adaptive_grid_with_a_very_short_sample_interval():
     sol = solve_ivp(_vdp, (0.0, 2.0), [1.55, 2.45], method="DOP853", rtol=1e-12, atol=1e-12, t_eval=times)
     for k in range(times.size):
         assert bool(tube.time_point_sets[k].contains(sol.y[:, k]))
+
+
+def test_fixed_steps_cover_their_stamps_at_large_time_origins():
+    """The fixed-step grid integrated ``(t_k+1 - t_k) / count`` per step while its stamps were ``t_k + j dt`` rounded:
+    from t0 = 1e6 (seeded linear fuzz: pure drift, 'lin', 0.02-s steps) the states at the stamps ending or starting
+    steps were up to half an ulp of the stamp (5.8e-11 s; 1.2e-7 s at 1.7e9) of drift outside their sets."""
+    drift = rc.Model(name="drift", states=("x",), dynamics=lambda s: [1.0])
+    for t0 in (1e6, 1.7e9):
+        times = t0 + np.array([0.0, 0.7, 1.3, 2.0])
+        opts = rc.ReachOptions(algorithm="lin", time_step=0.02)
+        tube = rc.reach(drift, rc.Interval([0.0], [0.0]), times, options=opts)
+        I = tube.time_intervals
+        assert np.array_equal(I[1:, 0], I[:-1, 1]) and I[0, 0] == times[0] and I[-1, 1] == times[-1]
+        for s in range(len(I)):  # the states at both stamps (exact differences: Sterbenz)
+            assert tube.time_interval_sets[s].contains((I[s] - t0)[:, None]).all(), (t0, s)
+        for k, t in enumerate(times):
+            assert bool(tube.time_point_sets[k].contains([t - t0])), (t0, k)
