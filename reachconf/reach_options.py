@@ -305,6 +305,8 @@ class ReachOptions:
         Order-reduction method: :class:`~reachconf.sets.reduction.Girard`
         (``"girard"``, Girard 2005) or :class:`~reachconf.sets.reduction.PCA`
         (``"pca"``, Kopetzki 2017); ``reduction_method`` is it as an instance.
+        Used by "lin" and "poly"; "adaptive" ignores it and reduces by its own
+        error-bounded rule (:mod:`reachconf_kernels.reduce_adaptive`).
     max_splits : int or None, default None
         How many times a set may be split (``None``: 8 for "lin"/"poly",
         :data:`ADAPTIVE_MAX_SPLITS` for "adaptive", which also splits when

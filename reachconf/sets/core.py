@@ -434,6 +434,10 @@ class Zonotope:
         answer carries a checked certificate, and one LP (HiGHS) per point
         without one (:func:`reachconf.sets.containment.contains_points`).
         Returns a bool for one point, a boolean array for the rows of ``points``.
+        A ``tol`` far below the default is not resolved where the LP decides:
+        HiGHS's feasibility tolerance is 1e-10 in the problem's scaled units
+        (measured: points at most 3.6 % of the default ``tol`` beyond the
+        widened set were accepted there).
         """
         P, single = as_points(points, self.dim)
         res = contains_points(self.center, self.generators, P, as_tolerance(tol))
