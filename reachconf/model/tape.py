@@ -259,9 +259,10 @@ class _Recorder:
             return self.unary(T.OP_SQRT, self.emit(base), f"square root of an interval reaching 0 or below in {expr}")
         text = f"power of a non-positive interval in {expr}"
         if exp.is_Number:
+            b = self.emit(base)  # first: recording the base may append constant rows
             lo, hi = interval_bounds(exp)
             self.consts.append((lo, hi))  # exponent row, not a node
-            return self.unary(T.OP_POWR, self.emit(base), text, aux=len(self.consts) - 1)
+            return self.unary(T.OP_POWR, b, text, aux=len(self.consts) - 1)
         # x**y = exp(y log x)
         lg = self.unary(T.OP_LOG, self.emit(base), text)
         return self.unary(T.OP_EXP, self.binary(T.OP_MUL, self.emit(exp), lg))
