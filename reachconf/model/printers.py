@@ -117,6 +117,25 @@ class IntervalEmitter:
         self.lines.append(f"{self.indent}if {condition}:")
         self.lines.append(f"{self.indent}    return {len(self.guards)}")
 
+    def _step(self, expr) -> tuple[str, str]:
+        """``sign`` or ``Heaviside`` over an interval: both are non-decreasing, so ``[phi(lo), phi(hi)]``.
+
+        Over an interval across 0 this is ``[-1, 1]`` (``[0, 1]``), which holds
+        the generalised gradients of ``Abs`` (``Min``, ``Max``) at the kink, so
+        the mean-value form of :func:`reachconf.model.outputs.output_enclosure`
+        stays an enclosure there.
+        """
+        a_lo, a_hi = self.emit(expr.args[0])
+        if isinstance(expr, sp.sign):
+            neg, zero, pos = "-1.0", "0.0", "1.0"
+        else:
+            h0 = expr.args[1] if len(expr.args) > 1 else sp.S.Half
+            neg, zero, pos = "0.0", repr(float(h0)), "1.0"
+        lo, hi = self._new()
+        self.lines.append(f"{self.indent}{lo} = {neg} if {a_lo} < 0.0 else ({zero} if {a_lo} == 0.0 else {pos})")
+        self.lines.append(f"{self.indent}{hi} = {pos} if {a_hi} > 0.0 else ({zero} if {a_hi} == 0.0 else {neg})")
+        return lo, hi
+
     def emit(self, expr) -> tuple[str, str]:
         """``(lo, hi)`` code names of the interval value of ``expr`` (emitting the lines that compute it once)."""
         if expr in self.var_map:
@@ -201,6 +220,8 @@ class IntervalEmitter:
             for a in args[1:]:
                 acc = self._call(fn, *acc, *self.emit(a))
             return acc
+        if isinstance(expr, (sp.sign, sp.Heaviside)):  # derivatives of Abs, Min, Max (in the Jacobian of h)
+            return self._step(expr)
         raise ModelError(
             f"the interval code generator does not support {type(expr).__name__} (in {expr}); "
             f"rewrite the model with +, -, *, /, powers, sqrt, exp, log, sin, cos, tan, atan, tanh, Abs, Min, Max"
