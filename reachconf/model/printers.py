@@ -19,7 +19,41 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from reachconf.errors import ModelError
 
-__all__ = ["PointPrinter", "point_code", "interval_constant", "IntervalEmitter"]
+__all__ = ["PointPrinter", "point_code", "interval_constant", "IntervalEmitter", "real_diff"]
+
+
+class _RealAbs(sp.Function):
+    """``Abs`` of a real argument: its derivative is ``sign(arg) arg'`` (see :func:`real_diff`)."""
+
+    is_extended_real = True
+
+    def fdiff(self, argindex=1):
+        return _RealSign(self.args[0])
+
+
+class _RealSign(sp.Function):
+    """``sign`` of a real argument: its derivative is ``2 DiracDelta(arg) arg'``."""
+
+    is_extended_real = True
+
+    def fdiff(self, argindex=1):
+        return 2 * sp.DiracDelta(self.args[0])
+
+
+def real_diff(expr, symbol):
+    """``sp.diff(expr, symbol)`` for a real model expression.
+
+    sympy differentiates ``Abs(g)`` of a ``g`` it cannot prove real (``log(x + 3)``,
+    ``sqrt(x + 3)``, ``(x + 3) ** x``) as a complex modulus: ``re``, ``im``, ``arg``,
+    ``atan2`` and unevaluated derivatives of ``sign``, which the printers cannot
+    print (the model did not build) or which are 0/0 where ``g = 0``.  Every
+    argument is real here (the interval code guards the domains), so ``Abs`` and
+    ``sign`` are differentiated as real functions.
+    """
+    if not expr.has(sp.Abs, sp.sign):
+        return sp.diff(expr, symbol)
+    real = expr.replace(sp.Abs, _RealAbs).replace(sp.sign, _RealSign)
+    return sp.diff(real, symbol).replace(_RealAbs, sp.Abs).replace(_RealSign, sp.sign)
 
 
 class PointPrinter(PythonCodePrinter):
