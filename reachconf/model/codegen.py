@@ -65,7 +65,7 @@ __all__ = ["CompiledModel", "compile_model", "cache_dir", "model_hash", "generat
            "GENERATOR_VERSION", "REMAINDERS"]  # fmt: skip
 
 #: Bump when the generated code changes meaning: old cache entries are then ignored.
-GENERATOR_VERSION = "4"
+GENERATOR_VERSION = "5"
 #: ways to bound the Lagrange remainders (see the module docstring)
 REMAINDERS = ("taylor", "tensor")
 

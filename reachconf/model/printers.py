@@ -19,7 +19,7 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from reachconf.errors import ModelError
 
-__all__ = ["PointPrinter", "point_code", "interval_constant", "IntervalEmitter", "real_diff"]
+__all__ = ["PointPrinter", "point_code", "interval_constant", "IntervalEmitter", "real_diff", "integer_exponent"]
 
 
 class _RealAbs(sp.Function):
@@ -54,6 +54,17 @@ def real_diff(expr, symbol):
         return sp.diff(expr, symbol)
     real = expr.replace(sp.Abs, _RealAbs).replace(sp.sign, _RealSign)
     return sp.diff(real, symbol).replace(_RealAbs, sp.Abs).replace(_RealSign, sp.sign)
+
+
+def integer_exponent(exp):
+    """``exp`` as a sympy Integer when it is a float with an integer value, else ``exp`` unchanged.
+
+    ``x**2.0`` is ``x**2`` for every real ``x``; as a real power the interval
+    code required ``x > 0`` (and sympy's derivatives of it hold ``x**1.0``).
+    """
+    if exp.is_Float and float(exp) == int(exp) and abs(int(exp)) <= 64:
+        return sp.Integer(int(exp))
+    return exp
 
 
 class PointPrinter(PythonCodePrinter):
@@ -203,6 +214,7 @@ class IntervalEmitter:
             return acc
         if expr.is_Pow:
             base, exp = expr.as_base_exp()
+            exp = integer_exponent(exp)
             b = self.emit(base)
             if exp.is_Integer:
                 k = int(exp)

@@ -30,7 +30,7 @@ import numpy as np
 import sympy as sp
 
 from reachconf.errors import ModelError
-from reachconf.model.printers import interval_constant
+from reachconf.model.printers import integer_exponent, interval_constant
 from reachconf_kernels import taylor as T
 
 __all__ = ["Tape", "build_tape", "graph_size", "interval_bounds", "TENSOR_BUDGET"]
@@ -244,6 +244,7 @@ class _Recorder:
 
     def _pow(self, expr) -> int:
         base, exp = expr.as_base_exp()
+        exp = integer_exponent(exp)  # x**2.0 is x**2, defined for x <= 0 too
         if exp.is_Integer:
             k = int(exp)
             if k == 0:
