@@ -56,7 +56,7 @@ import sympy as sp
 import reachconf_kernels
 from reachconf.errors import ModelError
 from reachconf.io.atomic import atomic_write
-from reachconf.model.printers import IntervalEmitter, point_code
+from reachconf.model.printers import IntervalEmitter, point_code, real_diff
 from reachconf.model.remainders import module_tape, taylor_section, tensor_section
 from reachconf_kernels.taylor import range_enclosure
 from reachconf.runner.caches import models_cache_dir
@@ -65,7 +65,7 @@ __all__ = ["CompiledModel", "compile_model", "cache_dir", "model_hash", "generat
            "GENERATOR_VERSION", "REMAINDERS"]  # fmt: skip
 
 #: Bump when the generated code changes meaning: old cache entries are then ignored.
-GENERATOR_VERSION = "3"
+GENERATOR_VERSION = "5"
 #: ways to bound the Lagrange remainders (see the module docstring)
 REMAINDERS = ("taylor", "tensor")
 
@@ -298,7 +298,7 @@ def _derivatives(model, order: int):
     z = model.z_symbols
     f = list(model.f_expr)
     n, nz = len(f), len(z)
-    jac = [[sp.diff(fi, zj) if zj in fi.free_symbols else sp.Integer(0) for zj in z] for fi in f]
+    jac = [[real_diff(fi, zj) if zj in fi.free_symbols else sp.Integer(0) for zj in z] for fi in f]
     hess = {}  # (i, j, k) with j <= k -> expr
     for i in range(n):
         for j in range(nz):
@@ -307,7 +307,7 @@ def _derivatives(model, order: int):
                 continue
             for k in range(j, nz):
                 if z[k] in d1.free_symbols:
-                    d2 = sp.diff(d1, z[k])
+                    d2 = real_diff(d1, z[k])
                     if d2 != 0:
                         hess[(i, j, k)] = d2
     third = {}
@@ -315,11 +315,11 @@ def _derivatives(model, order: int):
         for (i, j, k), d2 in hess.items():
             for l in range(k, nz):
                 if z[l] in d2.free_symbols:
-                    d3 = sp.diff(d2, z[l])
+                    d3 = real_diff(d2, z[l])
                     if d3 != 0:
                         third[(i, j, k, l)] = d3
     h = list(model.h_expr)
-    jac_h = [[sp.diff(hi, zj) if zj in hi.free_symbols else sp.Integer(0) for zj in z] for hi in h]
+    jac_h = [[real_diff(hi, zj) if zj in hi.free_symbols else sp.Integer(0) for zj in z] for hi in h]
     return f, jac, hess, third, h, jac_h
 
 

@@ -19,7 +19,52 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from reachconf.errors import ModelError
 
-__all__ = ["PointPrinter", "point_code", "interval_constant", "IntervalEmitter"]
+__all__ = ["PointPrinter", "point_code", "interval_constant", "IntervalEmitter", "real_diff", "integer_exponent"]
+
+
+class _RealAbs(sp.Function):
+    """``Abs`` of a real argument: its derivative is ``sign(arg) arg'`` (see :func:`real_diff`)."""
+
+    is_extended_real = True
+
+    def fdiff(self, argindex=1):
+        return _RealSign(self.args[0])
+
+
+class _RealSign(sp.Function):
+    """``sign`` of a real argument: its derivative is ``2 DiracDelta(arg) arg'``."""
+
+    is_extended_real = True
+
+    def fdiff(self, argindex=1):
+        return 2 * sp.DiracDelta(self.args[0])
+
+
+def real_diff(expr, symbol):
+    """``sp.diff(expr, symbol)`` for a real model expression.
+
+    sympy differentiates ``Abs(g)`` of a ``g`` it cannot prove real (``log(x + 3)``,
+    ``sqrt(x + 3)``, ``(x + 3) ** x``) as a complex modulus: ``re``, ``im``, ``arg``,
+    ``atan2`` and unevaluated derivatives of ``sign``, which the printers cannot
+    print (the model did not build) or which are 0/0 where ``g = 0``.  Every
+    argument is real here (the interval code guards the domains), so ``Abs`` and
+    ``sign`` are differentiated as real functions.
+    """
+    if not expr.has(sp.Abs, sp.sign):
+        return sp.diff(expr, symbol)
+    real = expr.replace(sp.Abs, _RealAbs).replace(sp.sign, _RealSign)
+    return sp.diff(real, symbol).replace(_RealAbs, sp.Abs).replace(_RealSign, sp.sign)
+
+
+def integer_exponent(exp):
+    """``exp`` as a sympy Integer when it is a float with an integer value, else ``exp`` unchanged.
+
+    ``x**2.0`` is ``x**2`` for every real ``x``; as a real power the interval
+    code required ``x > 0`` (and sympy's derivatives of it hold ``x**1.0``).
+    """
+    if exp.is_Float and float(exp) == int(exp) and abs(int(exp)) <= 64:
+        return sp.Integer(int(exp))
+    return exp
 
 
 class PointPrinter(PythonCodePrinter):
@@ -117,6 +162,25 @@ class IntervalEmitter:
         self.lines.append(f"{self.indent}if {condition}:")
         self.lines.append(f"{self.indent}    return {len(self.guards)}")
 
+    def _step(self, expr) -> tuple[str, str]:
+        """``sign`` or ``Heaviside`` over an interval: both are non-decreasing, so ``[phi(lo), phi(hi)]``.
+
+        Over an interval across 0 this is ``[-1, 1]`` (``[0, 1]``), which holds
+        the generalised gradients of ``Abs`` (``Min``, ``Max``) at the kink, so
+        the mean-value form of :func:`reachconf.model.outputs.output_enclosure`
+        stays an enclosure there.
+        """
+        a_lo, a_hi = self.emit(expr.args[0])
+        if isinstance(expr, sp.sign):
+            neg, zero, pos = "-1.0", "0.0", "1.0"
+        else:
+            h0 = expr.args[1] if len(expr.args) > 1 else sp.S.Half
+            neg, zero, pos = "0.0", repr(float(h0)), "1.0"
+        lo, hi = self._new()
+        self.lines.append(f"{self.indent}{lo} = {neg} if {a_lo} < 0.0 else ({zero} if {a_lo} == 0.0 else {pos})")
+        self.lines.append(f"{self.indent}{hi} = {pos} if {a_hi} > 0.0 else ({zero} if {a_hi} == 0.0 else {neg})")
+        return lo, hi
+
     def emit(self, expr) -> tuple[str, str]:
         """``(lo, hi)`` code names of the interval value of ``expr`` (emitting the lines that compute it once)."""
         if expr in self.var_map:
@@ -150,6 +214,7 @@ class IntervalEmitter:
             return acc
         if expr.is_Pow:
             base, exp = expr.as_base_exp()
+            exp = integer_exponent(exp)
             b = self.emit(base)
             if exp.is_Integer:
                 k = int(exp)
@@ -201,6 +266,8 @@ class IntervalEmitter:
             for a in args[1:]:
                 acc = self._call(fn, *acc, *self.emit(a))
             return acc
+        if isinstance(expr, (sp.sign, sp.Heaviside)):  # derivatives of Abs, Min, Max (in the Jacobian of h)
+            return self._step(expr)
         raise ModelError(
             f"the interval code generator does not support {type(expr).__name__} (in {expr}); "
             f"rewrite the model with +, -, *, /, powers, sqrt, exp, log, sin, cos, tan, atan, tanh, Abs, Min, Max"

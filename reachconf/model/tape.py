@@ -30,7 +30,7 @@ import numpy as np
 import sympy as sp
 
 from reachconf.errors import ModelError
-from reachconf.model.printers import interval_constant
+from reachconf.model.printers import integer_exponent, interval_constant
 from reachconf_kernels import taylor as T
 
 __all__ = ["Tape", "build_tape", "graph_size", "interval_bounds", "TENSOR_BUDGET"]
@@ -244,6 +244,7 @@ class _Recorder:
 
     def _pow(self, expr) -> int:
         base, exp = expr.as_base_exp()
+        exp = integer_exponent(exp)  # x**2.0 is x**2, defined for x <= 0 too
         if exp.is_Integer:
             k = int(exp)
             if k == 0:
@@ -259,9 +260,10 @@ class _Recorder:
             return self.unary(T.OP_SQRT, self.emit(base), f"square root of an interval reaching 0 or below in {expr}")
         text = f"power of a non-positive interval in {expr}"
         if exp.is_Number:
+            b = self.emit(base)  # first: recording the base may append constant rows
             lo, hi = interval_bounds(exp)
             self.consts.append((lo, hi))  # exponent row, not a node
-            return self.unary(T.OP_POWR, self.emit(base), text, aux=len(self.consts) - 1)
+            return self.unary(T.OP_POWR, b, text, aux=len(self.consts) - 1)
         # x**y = exp(y log x)
         lg = self.unary(T.OP_LOG, self.emit(base), text)
         return self.unary(T.OP_EXP, self.binary(T.OP_MUL, self.emit(exp), lg))

@@ -71,3 +71,44 @@ def test_code_that_cannot_be_generated_names_the_model():
     m = rc.Model(name="floor_model", states=("x",), dynamics=lambda s: [-sp.floor(s.x)])
     with pytest.raises(rc.ModelError, match="model 'floor_model': cannot generate code"):
         m.f([0.5])
+
+
+def test_outputs_with_abs_min_max_compile_and_their_enclosures_hold_across_the_kinks():
+    """An output with Abs, Min or Max: the interval Jacobian of ``h`` holds sympy's sign and Heaviside, which the
+    interval code generator refused ("does not support sign"), so the model did not build (found by a codegen fuzz
+    audit).  Over a set across a kink they enclose the generalised gradients: the output set holds every sample."""
+    from reachconf.model.outputs import output_enclosure
+
+    m = rc.Model(name="nonsmooth_outputs", states=("x", "y"), dynamics=lambda s: [s.y, -s.x],
+                 outputs=lambda s: {"a": sp.Abs(s.x - s.y) + s.y, "b": sp.Max(s.x, 2 * s.y - 1) * s.x,
+                                    "c": sp.Min(s.x ** 2, s.y)})  # fmt: skip
+    rng = np.random.default_rng(11)
+    for c, r in (([0.1, 0.1], [0.3, 0.2]), ([1.0, 1.0], [0.05, 0.5]), ([0.0, 0.0], [0.0, 0.4]), ([2.0, -1.0], [0.1, 0.1])):
+        S = rc.Zonotope(c, np.diag(r) @ np.array([[1.0, 0.5], [-0.2, 1.0]]))
+        Y = output_enclosure(m, S)
+        X = np.array(c) + rng.uniform(-1, 1, size=(400, 2)) @ np.array(S.generators).T
+        X = np.vstack([X, np.array(c) + np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]]) @ np.array(S.generators).T])
+        H = np.array([[abs(x - y) + y, max(x, 2 * y - 1) * x, min(x * x, y)] for x, y in X])
+        assert np.all(Y.contains(H, tol=1e-12)), c
+
+
+def test_abs_of_arguments_sympy_cannot_prove_real_compiles_with_real_derivatives():
+    """``Abs(log(x + 3))``, ``Abs((x + 3) ** y)``: sympy differentiates them as complex moduli (``re``, ``im``,
+    ``arg``, unevaluated derivatives of ``sign``), which the printer refused — the model did not build (found by a
+    codegen fuzz audit).  They are differentiated as real functions now: the Jacobian and Hessian match differences."""
+    m = rc.Model(name="abs_of_log", states=("x", "y"),
+                 dynamics=lambda s: [-sp.Abs(sp.log(s.x + 3)) * s.y, sp.Abs((s.x + 3) ** s.y) - sp.Abs(sp.sqrt(s.x + 3))])  # fmt: skip
+    comp = m.compiled()
+    p = m.param_vector
+    for z in ([0.5, 0.7], [-2.5, 1.2], [1.0, -0.4]):  # log(x + 3) > 0 and < 0
+        z = np.array(z)
+        J, H = np.zeros((2, 2)), np.zeros((2, 2, 2))
+        comp.jac(z, p, J)
+        comp.hess(z, p, H)
+        for j in range(2):
+            e = np.eye(2)[j] * 1e-6
+            np.testing.assert_allclose(J[:, j], (m.f(z + e) - m.f(z - e)) / 2e-6, rtol=1e-6, atol=1e-8)
+            Jp, Jm = np.zeros((2, 2)), np.zeros((2, 2))
+            comp.jac(z + e, p, Jp)
+            comp.jac(z - e, p, Jm)
+            np.testing.assert_allclose(H[:, :, j], (Jp - Jm) / 2e-6, rtol=1e-5, atol=1e-7)

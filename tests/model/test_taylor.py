@@ -225,3 +225,56 @@ def test_bad_remainder_option_raises():
         compile_model(get_model("vanderpol"), remainder="nope")
     with pytest.raises(ModelError):
         build_tape([sp.sign(sp.Symbol("x", real=True))], (sp.Symbol("x", real=True),), (), [])
+
+
+def test_real_powers_of_bases_with_constants_use_their_own_exponent():
+    """``(x + c) ** e`` with a real exponent: the exponent's constant row was taken after the base's constants
+    were recorded, so the kernel raised the base to ``c`` instead of ``e`` (``(x + 1) ** -0.5`` over [0.1, 0.5]
+    came out as [1.1, 1.5]) — the range and the remainders missed (found by a codegen fuzz audit)."""
+    x, w = sp.symbols("x w", real=True)
+    exprs = [w + (x + 1) ** sp.Rational(-1, 2), (x + sp.Float(0.25)) ** sp.Float(1.7) * w,
+             (2 * x + 3) ** sp.Rational(7, 3)]
+    tape = build_tape(exprs, (x, w), (), [])
+    f = sp.lambdify([(x, w)], exprs, "numpy")
+    J = sp.lambdify([(x, w)], sp.Matrix(exprs).jacobian((x, w)), "numpy")
+    rng = np.random.default_rng(7)
+    for _ in range(10):
+        zp = np.array([rng.uniform(0.1, 2.0), rng.uniform(-1.0, 1.0)])
+        dG = np.diag(rng.uniform(0.01, 0.08, 2))
+        dc = np.zeros(2)
+        rad = np.abs(dG).sum(axis=1)
+        zlo, zhi = zp - rad, zp + rad
+        lo, hi = np.zeros(3), np.zeros(3)
+        assert TM.range_enclosure(tape.ops, tape.consts, tape.outs, tape.segments, zlo, zhi, np.zeros(0), lo, hi) == 0
+        b2 = np.zeros(3)
+        assert TM.lagrange_bound(tape.ops, tape.consts, tape.outs, tape.tens, tape.segments, zlo, zhi, -rad, rad, zp,
+                                 dc, dG, np.zeros(0), 2, b2) == 0  # fmt: skip
+        f0, J0 = np.asarray(f(zp), float), np.asarray(J(zp), float)
+        for d in rng.uniform(-1, 1, size=(50, 2)) * rad:
+            v = np.asarray(f(zp + d), float)
+            assert np.all(lo <= v) and np.all(v <= hi), (lo, v, hi)
+            assert np.all(np.abs(v - f0 - J0 @ d) <= b2 + 1e-12), (v - f0 - J0 @ d, b2)
+
+
+def test_float_exponents_with_integer_values_are_integer_powers():
+    """``x**2.0`` (a parameter substituted as a float, say) is ``x**2``: as a real power its interval rule needed
+    ``x > 0``, so a set touching ``x <= 0`` stopped with "power of a non-positive interval" (and sympy's derivatives
+    hold ``x**1.0``, which stopped the tensor form too) (found by a codegen fuzz audit)."""
+    x, y = sp.symbols("x y", real=True)
+    exprs = [(1 - x ** sp.Float(2.0)) * y - x, x ** sp.Float(3.0) + y ** sp.Float(-2.0)]
+    guards = []
+    tape = build_tape(exprs, (x, y), (), guards, tensors={2: {(0, 0, 0): -2.0 * y, (0, 0, 1): -2.0 * x ** sp.Float(1.0),
+                                                              (1, 0, 0): 6.0 * x ** sp.Float(1.0), (1, 1, 1): 6.0 * y ** sp.Float(-4.0)}})  # fmt: skip
+    f = sp.lambdify([(x, y)], exprs, "numpy")
+    J = sp.lambdify([(x, y)], sp.Matrix(exprs).jacobian((x, y)), "numpy")
+    zp, rad = np.array([0.05, 1.5]), np.array([0.3, 0.2])  # x across 0
+    lo, hi, b2 = np.zeros(2), np.zeros(2), np.zeros(2)
+    assert TM.range_enclosure(tape.ops, tape.consts, tape.outs, tape.segments, zp - rad, zp + rad, np.zeros(0), lo,
+                              hi) == 0  # fmt: skip
+    assert TM.lagrange_bound(tape.ops, tape.consts, tape.outs, tape.tens, tape.segments, zp - rad, zp + rad, -rad, rad,
+                             zp, np.zeros(2), np.zeros((2, 0)), np.zeros(0), 2, b2) == 0  # fmt: skip
+    f0, J0 = np.asarray(f(zp), float), np.asarray(J(zp), float)
+    for d in np.random.default_rng(3).uniform(-1, 1, size=(200, 2)) * rad:
+        v = np.asarray(f(zp + d), float)
+        assert np.all(lo <= v) and np.all(v <= hi)
+        assert np.all(np.abs(v - f0 - J0 @ d) <= b2 + 1e-12)
