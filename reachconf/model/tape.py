@@ -123,12 +123,16 @@ class _Recorder:
         self.support.append(frozenset(support))
         return len(self.rows) - 1
 
+    def const_slot(self, lo: float, hi: float) -> int:
+        """Append ``[lo, hi]`` to the constant table and return its index (taken at once, before anything else records)."""
+        self.consts.append((lo, hi))
+        return len(self.consts) - 1
+
     def const(self, lo: float, hi: float) -> int:
         key = (lo, hi, self.fixed)
         node = self.const_index.get(key)
         if node is None:
-            self.consts.append((lo, hi))
-            node = self.add_row(T.OP_CONST, aux=len(self.consts) - 1)
+            node = self.add_row(T.OP_CONST, aux=self.const_slot(lo, hi))
             self.const_index[key] = node
         return node
 
@@ -261,9 +265,8 @@ class _Recorder:
         text = f"power of a non-positive interval in {expr}"
         if exp.is_Number:
             b = self.emit(base)  # first: recording the base may append constant rows
-            lo, hi = interval_bounds(exp)
-            self.consts.append((lo, hi))  # exponent row, not a node
-            return self.unary(T.OP_POWR, b, text, aux=len(self.consts) - 1)
+            slot = self.const_slot(*interval_bounds(exp))  # exponent row, not a node
+            return self.unary(T.OP_POWR, b, text, aux=slot)
         # x**y = exp(y log x)
         lg = self.unary(T.OP_LOG, self.emit(base), text)
         return self.unary(T.OP_EXP, self.binary(T.OP_MUL, self.emit(exp), lg))
