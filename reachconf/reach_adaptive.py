@@ -432,7 +432,7 @@ def _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=None,
                 else:  # halving does not lower the floor: go on over budget for a while
                     if code == ak.FAIL:
                         raise adaptive_failure(model, opts, state, t, c, G, smallest, highest, len(split_log),
-                                               max_splits, DT_MIN_FRACTION * horizon, steps=int(buf.pos[0]))  # fmt: skip
+                                               max_splits, DT_MIN_FRACTION * horizon, steps=int(buf.pos[0]), t0=samples[0])
                     task.split_after = float(t) + NO_SPLIT_SPAN * horizon
                     continue
                 for idx in (ia, ib):
@@ -446,7 +446,7 @@ def _run_once(model, Z0, Wz, samples, U, options, scalar, horizon, monitor=None,
                                          task.no_restart, task.gain_log, task.gain_n))  # fmt: skip
                 break
             raise adaptive_failure(model, opts, state, t, c, G, smallest, highest, len(split_log), max_splits,
-                                   DT_MIN_FRACTION * horizon, steps=int(buf.pos[0]))  # fmt: skip
+                                   DT_MIN_FRACTION * horizon, steps=int(buf.pos[0]), t0=samples[0])
     seconds = time.perf_counter() - t_start
     tp_c, tp_G, ti_c, ti_G, ng_tp, ng_ti, rec, rec_err = buf.trimmed()
     log = ReachLog.from_records(rec, branches, split_log, budget, smallest, n)

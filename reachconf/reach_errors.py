@@ -13,7 +13,7 @@ import numpy as np
 
 from reachconf.errors import ReachError
 
-__all__ = ["fixed_step_failure", "adaptive_failure", "STATUS", "TERMS"]
+__all__ = ["fixed_step_failure", "adaptive_failure", "wrapping_diagnosis", "STATUS", "TERMS"]
 
 #: the compiled step's status codes (``-1``: the adaptive control's own "rate grew faster than the step")
 STATUS = {
@@ -34,6 +34,34 @@ TERMS = {
 }
 
 
+def wrapping_diagnosis(model, t: float) -> str:
+    """Why the set of a *linear* model exploded, if the wrapping effect explains it ("" otherwise).
+
+    A linear model has no abstraction error, so a set that becomes NaN/inf is grown by the
+    order reduction: every step it boxes part of the set in the state axes, and a box grows
+    under ``e^{A dt}`` at up to the logarithmic norm ``mu_inf(A) = max_i (a_ii + sum_{j != i}
+    |a_ij|)`` per unit time, even when every eigenvalue is stable (a stiff, non-normal ``A``).
+    Reported when ``mu_inf(A) t`` exceeds 30 (a growth of e^30 of the rounding-sized boxes).
+    """
+    try:
+        if not model.is_linear():
+            return ""
+        J = np.zeros((model.n, model.nz))
+        model.compiled().jac(np.zeros(model.nz), model.param_vector, J)
+        A = J[:, : model.n]
+        lognorm = float(np.max(np.diag(A) + np.sum(np.abs(A), axis=1) - np.abs(np.diag(A))))
+        abscissa = float(np.max(np.linalg.eigvals(A).real))
+    except Exception:  # noqa: BLE001 - only a hint: the message stands without it
+        return ""
+    if not (np.isfinite(lognorm) and lognorm * max(t, 0.0) > 30.0):
+        return ""
+    return (f" The model is linear, so it has no abstraction error: the set grew by the wrapping effect of the order "
+            f"reduction, whose boxes grow at up to the logarithmic norm mu_inf(A) = {lognorm:.3g} 1/s "
+            f"(e^{lognorm * t:.3g} after {t:.6g} s) while the eigenvalues' largest real part is {abscissa:.3g} 1/s "
+            f"(a stiff, non-normal system). Write the model in coordinates where A is nearly normal (for a "
+            f"diagonalisable A, its real modal form z = V^-1 x): there the boxes do not grow.")
+
+
 def fixed_step_failure(model, options, status, step, bad_state, bad_term, t_start, dts, err, comp, splits):
     """The ReachError of a failed fixed-step reach ("lin"/"poly"): where, which state and term, what to try."""
     t = float(t_start[step])
@@ -52,13 +80,14 @@ def fixed_step_failure(model, options, status, step, bad_state, bad_term, t_star
         hints.append("tensor_order=3 (or algorithm='poly')")
     hints.append(f"a larger max_splits (used {splits} of {options.effective_max_splits})")
     hints.append("splitting the initial set, or a smaller initial set / disturbance set W")
-    msg = (f"reachable set of model {model.name!r} exploded {where}{detail}: {STATUS.get(status, '')}{size}. "
-           f"Try {', '.join(hints)}.")
+    wrapping = wrapping_diagnosis(model, t - float(t_start[0])) if status in (-1, 2, 3) else ""
+    advice = wrapping or f" Try {', '.join(hints)}."
+    msg = f"reachable set of model {model.name!r} exploded {where}{detail}: {STATUS.get(status, '')}{size}.{advice}"
     return ReachError(msg, time=t, state=state, term=term)
 
 
 def adaptive_failure(model, options, state, t, c, G, smallest, highest, splits, max_splits, dt_min, limit="",
-                     steps=0) -> ReachError:  # fmt: skip
+                     steps=0, t0=None) -> ReachError:  # fmt: skip
     """The ReachError of a failed adaptive reach: what was tried, where it failed, what to change.
 
     ``dt_min`` is the smallest step the run allows; ``limit`` (if any) the step or memory limit it hit.
@@ -102,8 +131,10 @@ def adaptive_failure(model, options, state, t, c, G, smallest, highest, splits, 
         msg = (f"adaptive reachability of model {model.name!r} stopped at t = {t:.6g} s: {limit}. It tried {tried}. "
                f"The set there: {box}. Try {', '.join(hints)}.")  # fmt: skip
     else:
-        msg = (f"adaptive reachability of model {model.name!r} could not bound the abstraction error {where} "
-               f"({what}). It tried {tried}. The set there: {box}. Try {', '.join(hints)}.")  # fmt: skip
+        wrapping = wrapping_diagnosis(model, t - t0) if status in (-1, 2, 3) and t0 is not None else ""
+        failed = "failed" if wrapping else "could not bound the abstraction error"
+        msg = (f"adaptive reachability of model {model.name!r} {failed} {where} "
+               f"({what}). It tried {tried}. The set there: {box}.{wrapping or ' Try ' + ', '.join(hints) + '.'}")
     info = {"smallest_step": float(smallest), "highest_tensor_order": int(highest),
             "max_order": float(options.alg.max_order), "splits": int(splits), "max_splits": int(max_splits),
             "steps": int(steps)}  # fmt: skip

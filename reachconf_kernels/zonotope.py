@@ -240,7 +240,12 @@ def reduce_pca(c, G, order):
             out[:, k] = G[:, keep[k]]
         return c.copy(), out
     R = G[:, rest]
-    Rs = R / np.max(np.abs(R))  # the axes do not depend on the scale; R R^T of entries beyond 1e154 overflowed
+    big = np.max(np.abs(R))
+    if not (big > 0.0 and big < np.inf):
+        # NaN/inf generators (an exploded set: eigh would raise LinAlgError) or only zero ones: the Girard box
+        # (NaN/inf propagate to the caller's finiteness check)
+        return reduce_girard(c, G, order)
+    Rs = R / big  # the axes do not depend on the scale; R R^T of entries beyond 1e154 overflowed
     cov = Rs @ Rs.T
     w, U = np.linalg.eigh(cov)
     # box in the rotated frame: U diag(sum |U^T R|) ; U orthonormal up to rounding
