@@ -46,6 +46,7 @@ _LAZY = {
     "Model": "reachconf.model.core",
     "simulate": "reachconf.model.simulate",
     "worst_case": "reachconf.model.worst_case",
+    "modal_form": "reachconf.model.modal",
     "reach": "reachconf.reach",
     "reach_run": "reachconf.reach",
     "reach_streamed": "reachconf.reach_stream",

@@ -58,8 +58,9 @@ def wrapping_diagnosis(model, t: float) -> str:
     return (f" The model is linear, so it has no abstraction error: the set grew by the wrapping effect of the order "
             f"reduction, whose boxes grow at up to the logarithmic norm mu_inf(A) = {lognorm:.3g} 1/s "
             f"(e^{lognorm * t:.3g} after {t:.6g} s) while the eigenvalues' largest real part is {abscissa:.3g} 1/s "
-            f"(a stiff, non-normal system). Write the model in coordinates where A is nearly normal (for a "
-            f"diagonalisable A, its real modal form z = V^-1 x): there the boxes do not grow.")
+            f"(a stiff, non-normal system). Reach it in coordinates where A is nearly normal, where the boxes do not "
+            f"grow: for a diagonalisable A its real modal form z = V^-1 x (reachconf.modal_form(model): reach its "
+            f".model from .to_modal(X0)).")
 
 
 def fixed_step_failure(model, options, status, step, bad_state, bad_term, t_start, dts, err, comp, splits):

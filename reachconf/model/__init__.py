@@ -10,11 +10,14 @@
 * :mod:`reachconf.model.simulate` — :func:`simulate` (compiled RK4, the one
   simulation entry point) and the reference :func:`simulate_ivp`;
 * :mod:`reachconf.model.worst_case` — :func:`worst_case`, the trajectory that
-  drives a function of the state furthest (an inner bound of the reachable set).
+  drives a function of the state furthest (an inner bound of the reachable set);
+* :mod:`reachconf.model.modal` — :func:`modal_form`, a linear model in real
+  modal coordinates (where a stiff, non-normal system's reach does not explode).
 """
 
 from reachconf.model.codegen import CompiledModel, cache_dir, compile_model
 from reachconf.model.core import Model, Symbols
+from reachconf.model.modal import ModalForm, modal_form
 from reachconf.model.outputs import (
     affine_output,
     evaluate_outputs,
@@ -28,4 +31,4 @@ from reachconf.model.worst_case import WorstCase, worst_case
 
 __all__ = ["Model", "Symbols", "CompiledModel", "compile_model", "cache_dir", "simulate", "simulate_ivp",
            "affine_output", "evaluate_outputs", "output_enclosure", "output_index_of_states", "state_estimate",
-           "state_index_of_outputs", "WorstCase", "worst_case"]  # fmt: skip
+           "state_index_of_outputs", "WorstCase", "worst_case", "ModalForm", "modal_form"]  # fmt: skip
