@@ -361,10 +361,11 @@ class Model:
     def is_linear(self) -> bool:
         """True when ``f`` is affine in ``(x, u, w)`` (all second derivatives vanish)."""
         z = self.z_symbols
+        zset = set(z)
         for expr in self.f_expr:
-            for zi in z:
+            for zi in expr.free_symbols & zset:  # a derivative can only vary in the variables it holds (not nz^2 checks)
                 d = sp.diff(expr, zi)
-                if any(sp.diff(d, zj) != 0 for zj in z):
+                if any(sp.diff(d, zj) != 0 for zj in d.free_symbols & zset):
                     return False
         return True
 

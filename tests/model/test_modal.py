@@ -59,3 +59,10 @@ def test_modal_form_refuses_nonlinear_and_defective_models():
     with pytest.raises(ModelError, match="state_prefix"):
         pair = Model(name="pair", states=("x0", "x1"), dynamics=lambda s: [-s.x0, s.x0 - 2 * s.x1])
         rc.modal_form(pair, state_prefix="x")  # the outputs are the original states x0, x1
+
+
+def test_without_the_outputs_the_modal_states_are_the_outputs():
+    A = np.array([[-1.0, 3.0], [0.0, -50.0]])
+    modal = rc.modal_form(_model(A, np.ones((2, 2))), keep_outputs=False)
+    assert modal.model.output_names == ("z0", "z1")
+    assert np.allclose(np.sort(modal.eigenvalues.real), [-50.0, -1.0])
