@@ -19,7 +19,7 @@ def _model(A, B, name="lin"):
                                      + s[f"e{i}"] * s.w + 0.5 for i in range(n)])  # fmt: skip
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", range(4))
 def test_modal_model_is_the_same_system_in_other_coordinates(seed):
     rng = np.random.default_rng(seed)
     n = 3 + seed % 2
