@@ -44,11 +44,11 @@ def wrapping_diagnosis(model, t: float) -> str:
     Reported when ``mu_inf(A) t`` exceeds 30 (a growth of e^30 of the rounding-sized boxes).
     """
     try:
+        from reachconf.model.modal import affine_parts
+
         if not model.is_linear():
             return ""
-        J = np.zeros((model.n, model.nz))
-        model.compiled().jac(np.zeros(model.nz), model.param_vector, J)
-        A = J[:, : model.n]
+        A = affine_parts(model)[0][:, : model.n]
         lognorm = float(np.max(np.diag(A) + np.sum(np.abs(A), axis=1) - np.abs(np.diag(A))))
         abscissa = float(np.max(np.linalg.eigvals(A).real))
     except Exception:  # noqa: BLE001 - only a hint: the message stands without it

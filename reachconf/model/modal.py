@@ -28,7 +28,7 @@ import sympy as sp
 
 from reachconf.errors import ModelError
 
-__all__ = ["ModalForm", "modal_form"]
+__all__ = ["ModalForm", "modal_form", "affine_parts"]
 
 #: largest condition number of the eigenvector basis accepted (beyond it ``A`` is (nearly) defective)
 MAX_CONDITION = 1e8
@@ -97,6 +97,14 @@ def _real_basis(A: np.ndarray, name: str):
     return V, np.linalg.inv(V), np.asarray(order, dtype=complex)
 
 
+def affine_parts(model):
+    """``(J, f0)`` of a linear model: ``f(z) = J z + f0`` with ``z = (x, u, w)``, parameters substituted."""
+    F = sp.Matrix(model.f_expr).xreplace({s: float(model.params[s.name]) for s in model.p_symbols})
+    J = np.array(F.jacobian(model.z_symbols).evalf(), dtype=float)  # constant: f is affine
+    f0 = np.array(F.xreplace({s: 0 for s in model.z_symbols}).evalf(), dtype=float).ravel()
+    return J, f0
+
+
 def modal_form(model, state_prefix: str = "z", keep_outputs: bool = True) -> ModalForm:
     """The linear ``model`` in real modal coordinates ``z = V^-1 x`` (parameters substituted).
 
@@ -125,13 +133,13 @@ def modal_form(model, state_prefix: str = "z", keep_outputs: bool = True) -> Mod
     """
     from reachconf.model.core import Model
 
+    if not isinstance(model, Model):
+        raise ModelError(f"modal_form needs a reachconf Model, got {type(model).__name__}")
     if not model.is_linear():
         raise ModelError(f"model {model.name!r} is not linear (f is not affine in x, u, w): it has no modal form")
     values = {s: float(model.params[s.name]) for s in model.p_symbols}
     n, z_old = model.n, model.z_symbols
-    F = sp.Matrix(model.f_expr).xreplace(values)
-    J = np.array(F.jacobian(z_old).evalf(), dtype=float)  # constant: f is affine
-    f0 = np.array(F.xreplace({s: 0 for s in z_old}).evalf(), dtype=float).ravel()
+    J, f0 = affine_parts(model)
     V, V_inv, lam = _real_basis(J[:, :n], model.name)
     names = [f"{state_prefix}{i}" for i in range(n)]
     taken = set(model.input_names + model.disturbance_names + (model.output_names if keep_outputs else ()))

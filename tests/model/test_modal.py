@@ -66,3 +66,8 @@ def test_without_the_outputs_the_modal_states_are_the_outputs():
     modal = rc.modal_form(_model(A, np.ones((2, 2))), keep_outputs=False)
     assert modal.model.output_names == ("z0", "z1")
     assert np.allclose(np.sort(modal.eigenvalues.real), [-50.0, -1.0])
+
+
+def test_modal_form_of_something_not_a_model_is_a_model_error():
+    with pytest.raises(ModelError, match="needs a reachconf Model"):
+        rc.modal_form(np.eye(2))
