@@ -144,7 +144,7 @@ def test_serial_processes_and_dask_agree(model, suite):
     serial = synthesize_W(model, small, V_SET, opts)
     procs = synthesize_W(model, small, V_SET, opts, workers=2)
     distributed = pytest.importorskip("dask.distributed")
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False) as cluster:
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
         with distributed.Client(cluster) as client:
             dask = synthesize_W(model, small, V_SET, opts, scheduler=client)
     for other in (procs, dask):
