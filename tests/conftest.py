@@ -29,6 +29,19 @@ def load_example(name: str):
     return mod
 
 
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_auto_num_workers(config) -> int:
+    """Workers for ``-n auto`` (``pyproject.toml``'s ``addopts``): one per core, but at most one per 3 GiB of memory
+    and at most 8 — each worker holds its own compiled kernels and models (up to about 2 GiB) and, on an empty
+    cache, compiles them again."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    try:
+        memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):  # not a POSIX system: count the cores only
+        memory = cores * 3 * 2**30
+    return max(1, min(cores, int(memory // (3 * 2**30)), 8))
+
+
 @pytest.fixture(scope="session")
 def repo_root() -> Path:
     """The repository's root folder."""
