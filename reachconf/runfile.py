@@ -128,6 +128,14 @@ def _add_model_folder(module_name: str, base: Path) -> None:
             sys.path.insert(0, folder)
 
 
+def _folder(base: Path, name: str, where: str) -> Path:
+    """``base / name`` resolved; a name no file system takes (a NUL character) is a DataError naming ``where``."""
+    try:
+        return (base / name).resolve()
+    except (OSError, ValueError) as exc:
+        raise DataError(f"{where}: {name!r} is not a usable folder name ({exc})") from None
+
+
 def _is_number(value) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
@@ -190,7 +198,7 @@ def load_run(path) -> RunSpec:
         raise DataError(f"{path}: suite must be a folder name (a string), got {raw['suite']!r}")
     if not isinstance(raw.get("description", ""), str):
         raise DataError(f"{path}: description must be a string")
-    suite_path = (path.parent / raw["suite"]).resolve()
+    suite_path = _folder(path.parent, raw["suite"], f"{path}: suite")
     sets = _table(raw, "sets", str(path))
     unknown = sorted(set(sets) - {"W", "V", "X0"})
     if unknown:
@@ -256,7 +264,8 @@ def input_paths(path) -> tuple[list, list]:
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
         return [path], []
     diag = raw.get("diagnose") if isinstance(raw.get("diagnose"), dict) else {}
-    folders = [path.parent / v for v in (raw.get("suite"), diag.get("reference")) if isinstance(v, str) and v]
+    folders = [path.parent / v for v in (raw.get("suite"), diag.get("reference"))
+               if isinstance(v, str) and v and "\x00" not in v]  # fmt: skip
     return [path], folders
 
 
@@ -324,7 +333,7 @@ def diagnose_settings(spec: RunSpec, cases=None) -> dict:
         ref = table.pop("reference")
         if not isinstance(ref, str):
             raise DataError(f"{where}: reference must be the path of a test-suite folder, got {ref!r}")
-        path = (spec.path.parent / ref).resolve()
+        path = _folder(spec.path.parent, ref, f"{where}: reference")
         kwargs["reference"] = select_cases(load_suite(path, model=spec.model), cases, path)
     kwargs["options"] = _options(DiagnoseOptions, table, where)
     return kwargs

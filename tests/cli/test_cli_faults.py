@@ -435,6 +435,13 @@ def test_a_model_module_next_to_the_run_file_is_found(capsys, monkeypatch, run_f
     one_line_error(status, err, "No module named 'not_there_xyz'", "next to the run file")
 
 
+def test_a_suite_name_no_file_system_takes_is_one_line(capsys, monkeypatch, run_file):
+    """A NUL character in the run file's folder names (found by the run-file fuzz: a bare ValueError before)."""
+    patch(monkeypatch, WORK["conform"], no_work)
+    status, _, err = main(capsys, "conform", edit(run_file, 'suite = "suite"', 'suite = "su\\u0000ite"'))
+    one_line_error(status, err, f"{run_file}: suite: 'su\\x00ite' is not a usable folder name")
+
+
 def test_an_empty_out_is_refused(capsys, monkeypatch, run_file, tmp_path):
     patch(monkeypatch, WORK["conform"], no_work)
     monkeypatch.chdir(tmp_path)
@@ -447,6 +454,7 @@ def test_an_empty_out_is_refused(capsys, monkeypatch, run_file, tmp_path):
     ("holdout = 2.0", "[diagnose]: holdout must be a number in (0, 1), got 2.0"),
     ("seed = -1", "[diagnose]: seed must be a non-negative integer, got -1"),
     ('effects = [["actuator_lag", "vx"]]', "[diagnose]: "),
+    ('reference = "ref\\u0000"', "[diagnose]: reference: 'ref\\x00' is not a usable folder name"),
 ])
 def test_diagnose_settings_are_named_with_the_run_file(capsys, monkeypatch, run_file, table, needle):
     patch(monkeypatch, WORK["diagnose"], no_work)
