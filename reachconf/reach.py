@@ -33,7 +33,7 @@ from reachconf.reach_errors import fixed_step_failure
 from reachconf.reach_options import AdaptiveReach, ReachOptions
 from reachconf.sets.convert import as_zonotope
 from reachconf.sets.core import Zonotope
-from reachconf.timestamps import stamp_rounding
+from reachconf.timestamps import steps_per_interval
 from reachconf.tube import ReachTube
 
 __all__ = ["ReachOptions", "reach", "reach_run", "ReachRun", "ReachStopped"]
@@ -84,8 +84,7 @@ def _step_counts(samples: np.ndarray, time_step: float | None, scalar_horizon: b
     horizon = samples[-1] - samples[0]
     if time_step is None:
         time_step = horizon / 100.0 if scalar_horizon else min(horizon / 100.0, float(np.min(np.diff(samples))))
-    slack = 1e-9 + stamp_rounding(samples[0], samples[-1]) / time_step  # (a count of ulps of the stamps)
-    return np.maximum(1, np.ceil(np.diff(samples) / time_step - slack).astype(np.int64))
+    return steps_per_interval(samples, time_step)
 
 
 def integration_steps(times, options=None) -> int:
@@ -97,7 +96,7 @@ def integration_steps(times, options=None) -> int:
     samples, options = sample_times(times), options or ReachOptions()
     step = options.time_step  # adaptive without one: a hundredth of the horizon (a 1e-8-s interval counted 2e8 steps)
     step = float(samples[-1] - samples[0]) / 100.0 if step is None and isinstance(options.alg, AdaptiveReach) else step
-    return int(_step_counts(samples, step, np.ndim(times) == 0).sum())
+    return int(_step_counts(samples, step, np.ndim(times) == 0).sum(dtype=np.float64))  # (no int64 overflow)
 
 
 def _input_table(model, inputs, samples, t_start, sample_of_step, per_step: bool) -> np.ndarray:

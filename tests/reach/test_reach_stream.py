@@ -99,6 +99,10 @@ def test_reach_checks_memory_before_the_work(setting, monkeypatch):
     tiny = rc.ReachOptions(time_step=1e-8)
     with pytest.raises(rc.ResourceError, match=r"reach of model 'bicycle_closed_loop': .* need about .*reach_streamed"):
         rc.reach(model, X0, case.t - case.t[0], inputs=case.U, W=W_TRUE, options=tiny)
+    # steps so small that their count overflows (it wrapped to one step per sample and ran; found by the run-file fuzz)
+    for step in (1e-300, 5e-324):
+        with pytest.raises(rc.ResourceError, match="need about"):
+            rc.reach(model, X0, case.t - case.t[0], inputs=case.U, W=W_TRUE, options=rc.ReachOptions(time_step=step))
     monkeypatch.setenv("REACHCONF_MEMORY_LIMIT", "1e6")
     with pytest.raises(rc.ResourceError, match="nothing was computed"):
         rc.reach(model, X0, case.t[:50] - case.t[0], inputs=case.U[:50], W=W_TRUE, options=OPTS)
