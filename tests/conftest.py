@@ -30,10 +30,12 @@ def load_example(name: str):
 
 
 @pytest.hookimpl(optionalhook=True)
-def pytest_xdist_auto_num_workers(config) -> int:
+def pytest_xdist_auto_num_workers(config) -> int | None:
     """Workers for ``-n auto`` (``pyproject.toml``'s ``addopts``): one per core, but at most one per 3 GiB of memory
     and at most 8 — each worker holds its own compiled kernels and models (up to about 2 GiB) and, on an empty
-    cache, compiles them again."""
+    cache, compiles them again.  ``PYTEST_XDIST_AUTO_NUM_WORKERS`` set: xdist's own choice (that number)."""
+    if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS"):
+        return None
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     try:
         memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
