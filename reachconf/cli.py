@@ -297,7 +297,9 @@ def cmd_diagnose(args, run):
     spec = _load(args)
     suite = _select_cases(spec, args, segments=False)
     kwargs = diagnose_settings(spec, cases=getattr(args, "case", None))
-    report = diagnose(spec.model, suite, V=spec.V, progress=progress_shown(), **kwargs)  # no bar in a log file
+    workers = args.workers if args.workers is not None else spec.workers
+    report = diagnose(spec.model, suite, V=spec.V, progress=progress_shown(), workers=workers,
+                      **kwargs)  # no bar in a log file  # fmt: skip
     if args.json:
         report.to_json(args.json)
     out = run.outputs.folder
@@ -360,7 +362,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(fn=cmd_synth)
     sp = sub.add_parser("diagnose", help="sim-to-real gap: where it lies, which effect causes it, how far W shrinks")
     common(sp, pool=False)
-    sp.set_defaults(fn=cmd_diagnose, workers=None, scheduler=None, worker_timeout=None)
+    sp.add_argument("--workers", type=commands.positive_int, default=None,
+                    help="processes for the candidates' fits (default: the run file's workers, else one per core, "
+                         "at most 8)")  # fmt: skip
+    sp.set_defaults(fn=cmd_diagnose, scheduler=None, worker_timeout=None)
     commands.add_commands(sub, common, {"warmup": commands.cmd_warmup, "pareto": lambda args, run: commands.cmd_pareto(
         args, run, _load, _select_cases, _savefig)})  # fmt: skip
     sp = sub.add_parser("plot", help="plot a result (tube .npz; conform, synthesis, Pareto or diagnosis JSON)")

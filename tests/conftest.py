@@ -16,6 +16,10 @@ from pathlib import Path
 import pytest
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+# every xdist worker is a process per core already: a diagnosis forks no fit workers of its own there
+# (tests/diagnose/test_parallel.py asks for them explicitly)
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ.setdefault("REACHCONF_DIAGNOSE_WORKERS", "1")
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 DATA_ROOT = Path(os.environ.get("REACHCONF_DATA", REPO_ROOT.parent / "shared" / "data"))

@@ -34,7 +34,7 @@ sympy transformations whose new parameters are fitted through
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Callable
 
 import numpy as np
@@ -44,7 +44,7 @@ from reachconf.errors import ModelError, OptionsError
 from reachconf.model.core import Model
 from reachconf_kernels.signals import first_order_lag, first_order_lag_from, transport_delay
 
-__all__ = ["Effect", "EFFECTS", "register_effect", "effect_param_name"]
+__all__ = ["Effect", "EFFECTS", "register_effect", "registered_effect", "effect_param_name"]
 
 
 @dataclass(frozen=True)
@@ -106,6 +106,18 @@ class Effect:
     start_grid: tuple | None = None
     null: tuple | None = None
     start: Callable | None = None
+
+    def __reduce__(self):
+        # a registered effect travels by name (its callables are often lambdas): the diagnosis's worker
+        # processes (reachconf.diagnose.parallel) send fit results holding it back to the calling process
+        if EFFECTS.get(self.name) is self:
+            return (registered_effect, (self.name,))
+        return (Effect, tuple(getattr(self, f.name) for f in fields(self)))
+
+    @property
+    def registered(self) -> bool:
+        """Whether this effect is the library's effect of its name (:func:`register_effect`)."""
+        return EFFECTS.get(self.name) is self
 
     def __post_init__(self):
         if self.kind not in ("input", "output", "param", "state"):
@@ -272,6 +284,13 @@ def _velocity_states(model):
 
 
 EFFECTS: dict = {}
+
+
+def registered_effect(name: str) -> Effect:
+    """The library's effect called ``name`` (how a registered :class:`Effect` is unpickled)."""
+    if name not in EFFECTS:
+        raise OptionsError(f"effect {name!r} is not registered here (register_effect); known: {sorted(EFFECTS)}")
+    return EFFECTS[name]
 
 
 def register_effect(effect: Effect) -> Effect:

@@ -28,7 +28,7 @@ from reachconf.errors import ConformanceError
 from reachconf.io.cases import TestCase, case_arrays
 
 __all__ = ["noise_level", "PreparedCase", "prepare", "Candidate", "FitResult",
-           "case_starts", "fit_candidate", "transformed_case", "transformed_signals", "window_residuals", "window_losses",
+           "case_starts", "fit_candidate", "prebuild_models", "transformed_case", "transformed_signals", "window_residuals", "window_losses",
            "window_counts", "prediction_cost"]
 
 
@@ -150,6 +150,14 @@ def _model_for(base, cand: Candidate, cache: dict):
     model, names = cache[key]
     # the cached model may have been built from a base with other parameter values
     return model.with_params(**{n: base.params[n] for n in base.param_names}), names
+
+
+def prebuild_models(base, cands, cache: dict) -> None:
+    """Build and compile the models of the candidates' model-kind effects into ``cache`` (before worker
+    processes fork, so that they inherit them: :mod:`reachconf.diagnose.parallel`)."""
+    for cand in cands:
+        if cand.structural:
+            _model_for(base, cand, cache)[0].compiled()
 
 
 def transformed_signals(model, cand: Candidate, theta_eff: dict, t, U, Y, starts=None):

@@ -30,6 +30,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -56,6 +57,7 @@ from reachconf.diagnose.howfar import (
 )
 from reachconf.diagnose.locate import locate_gap
 from reachconf.diagnose.options import DiagnoseOptions
+from reachconf.diagnose.parallel import FitMap, picklable
 from reachconf.diagnose.probes import band_shares, separating_probe
 from reachconf.diagnose.reference import change_test, prepare_reference
 from reachconf.diagnose.report import GapReport
@@ -122,6 +124,12 @@ def resolve_effects(model, effects):
 
 
 
+def _cpu_time() -> float:
+    """CPU seconds of this process and of its finished children (the forked fit workers)."""
+    t = os.times()
+    return time.process_time() + t.children_user + t.children_system
+
+
 def _fit_names(model, fit_params):
     if fit_params is True:
         return tuple(model.param_names)
@@ -137,7 +145,7 @@ def _fit_names(model, fit_params):
 @with_one_blas_thread
 def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True, seed: int = 0, V=None,
              options: DiagnoseOptions | None = None, progress: bool = True, reach: bool = False,
-             reference=None) -> GapReport:  # fmt: skip
+             reference=None, workers=None) -> GapReport:  # fmt: skip
     """Diagnose the sim-to-real gap of ``model`` on ``suite`` (see the module docstring).
 
     Parameters
@@ -172,12 +180,18 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         model's excess misfit over the reference, its z and the difference
         loss).  Every scored model is also fitted on the reference, which
         doubles the time of the *which* step.
+    workers : int, optional
+        Processes that run the *which* step's independent fits
+        (:mod:`reachconf.diagnose.parallel`; forked from this one).  Default:
+        one per core (at most 8), or 1 inside a worker process of a pool
+        and where processes cannot be forked.  The report is the same for
+        any number.
 
     Returns
     -------
     GapReport
     """
-    t_start, c_start = time.perf_counter(), time.process_time()
+    t_start, c_start = time.perf_counter(), _cpu_time()
     require_model(model, "diagnose")
     options = check_options(options, DiagnoseOptions, "diagnose")
     if not (isinstance(holdout, (int, float)) and not isinstance(holdout, bool) and 0 < holdout < 1):
@@ -200,6 +214,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     candidates = resolve_effects(model, effects)
     if not candidates:
         raise OptionsError("effects: no candidate effect applies to this model")
+    fits = FitMap(workers if picklable({e for e, _ in candidates}) else 1)
 
     prepared = [prepare(model, c, options) for c in cases]
     ref_prepared = prepare_reference(model, reference, prepared, options) if reference is not None else None
@@ -218,12 +233,12 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     bar = tqdm(total=3 + min(options.screen, len(candidates)) + n_pairs, desc="diagnose", disable=not progress,
                leave=False)  # fmt: skip
 
-    timings = {"prepare": time.process_time() - c_start}
+    timings = {"prepare": _cpu_time() - c_start}
     interrupted = False
     state = {"screen": [], "models": []}
     try:
         score_models(model, prepared, candidates, folds, clusters, sigma, fit_names, options, cache, bar, state,
-                     ref=ref_prepared)  # fmt: skip
+                     ref=ref_prepared, fits=fits)  # fmt: skip
     except KeyboardInterrupt:  # pragma: no cover - interactive: decide on what was scored so far
         if "base" not in state:
             raise
@@ -232,7 +247,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     # the suite's own held-out loss of the base (with a reference, base_sc holds its loss of the change)
     base_total = state["base_suite"].total if ref_prepared is not None else base_sc.total
     scale = state["scale"]  # the loss scale of every fit (sigma: the sensor noise, for V and the probes)
-    timings["which"] = time.process_time() - c_start - sum(timings.values())
+    timings["which"] = _cpu_time() - c_start - sum(timings.values())
     fulls, mimics = {}, {}
 
     def full(m):
@@ -293,7 +308,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
                                  "separating": separating_probe(chosen_full, alt_full, prepared, sigma),
                                  "data_band_shares": {u: band_shares(prepared, u, model) for u in inputs}})  # fmt: skip
     bar.update(1)
-    timings["named"] = time.process_time() - c_start - sum(timings.values())
+    timings["named"] = _cpu_time() - c_start - sum(timings.values())
 
     # held-out cases of the first fold for where / how far (models fitted on the other folds)
     test = [d for d, f in zip(prepared, folds) if f == 0]
@@ -308,7 +323,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     if avp is not None:
         where["actuator_vs_process"] = avp
     channels = list(model.disturbance_names)
-    timings["where"] = time.process_time() - c_start - sum(timings.values())
+    timings["where"] = _cpu_time() - c_start - sum(timings.values())
     per_step = [trace_disturbances(base0.model, c, V=V).W_trace for c in test_base]
     eps = 1e-9 + 0.05 * np.ptp(np.vstack(per_step), axis=0)
     segs_base = decimated_cases(model, base0, box_test, k, options.box_segment, options.substeps)
@@ -349,7 +364,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         tubes = reach_tubes(model, [("base", base0, base_box), ("with effect", after0, after_box)],
                             lambda f: decimated_cases(model, f, [first], k, substeps=options.substeps)[0], options.tube_horizon, V)  # fmt: skip
 
-    timings["how_far"] = time.process_time() - c_start - sum(timings.values())
+    timings["how_far"] = _cpu_time() - c_start - sum(timings.values())
     # model-free check on the training cases of the first fold
     blocks, traces, names = [], [], None
     for c in train_base:
@@ -360,7 +375,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         traces.append(tr.W_trace)
     features = sparse_features(traces, blocks, names, channels) if names else []
     bar.close()
-    timings["model_free"] = time.process_time() - c_start - sum(timings.values())
+    timings["model_free"] = _cpu_time() - c_start - sum(timings.values())
 
     ranked = sorted(models, key=lambda m: m.total)
     ranked_entries = [model_entry(m, base_sc, clusters, decision) for m in ranked]
@@ -384,12 +399,12 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
                  "loss_scale": {"method": options.loss_scale, "per_output": np.asarray(scale).tolist(),
                                 "per_case": {d.name: float(d.weight) for d in prepared}},
                  "folds": k_folds, "clusters": int(clusters.max()) + 1 if clusters.size else 0,
-                 "cpu_seconds_by_step": timings}  # fmt: skip
+                 "cpu_seconds_by_step": timings, "workers": fits.workers}  # fmt: skip
     split = {"train": [d.name for d in train], "test": [d.name for d in test],
              "folds": {d.name: int(f) for d, f in zip(prepared, folds)}}  # fmt: skip
     report = GapReport(where, ranked_entries, verdict, base_info, None, features, before_after, split,
                        time.perf_counter() - t_start, decision=record)  # fmt: skip
-    report.cpu_seconds = time.process_time() - c_start
+    report.cpu_seconds = _cpu_time() - c_start
     report.tubes = tubes
     report.scores = {"clusters": clusters, "base": base_sc.losses,
                      "models": [{"label": m.label, "parts": [[e.name, t] for e, t in m.candidate.parts],

@@ -19,9 +19,11 @@ the base model's misfit common to both recordings.
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import partial
 from itertools import combinations
 
-from reachconf.diagnose.fit import Candidate, fit_candidate, window_residuals
+from reachconf.diagnose.fit import Candidate, fit_candidate, prebuild_models, window_residuals
+from reachconf.diagnose.parallel import FitMap
 from reachconf.diagnose.reference import difference_score, excess_scores
 from reachconf.diagnose.scales import case_weights, residual_scale
 from reachconf.diagnose.select import cross_fit, fold_start, paired_test
@@ -43,10 +45,18 @@ def _start(fits, base_params=None):
 class _Scorer:
     """Cross-fits and screens on the suite, and with a reference also on it (losses of the change, screens of it)."""
 
-    def __init__(self, model, prepared, ref, folds, sigma, fit_names, options, cache, base_full, base_ref_full):
+    def __init__(self, model, prepared, ref, folds, sigma, fit_names, options, cache, base_full, base_ref_full,
+                 fits=None):  # fmt: skip
         self.model, self.prepared, self.ref, self.folds = model, prepared, ref, folds
         self.sigma, self.fit_names, self.options, self.cache = sigma, fit_names, options, cache
         self.base_full, self.base_ref_full = base_full, base_ref_full
+        self.fits = fits or FitMap(1)
+
+    def run(self, cands, jobs, done):
+        """A stage's jobs (one per candidate of ``cands``) on :attr:`fits`, their models built here first (the
+        worker processes inherit them)."""
+        prebuild_models(self.model, cands, self.cache)
+        return self.fits(jobs, done)
 
     def cross(self, cand, start):
         if self.ref is None:
@@ -99,7 +109,7 @@ class _Scorer:
 
 
 def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names, options, cache, bar, state,
-                 ref=None):  # fmt: skip
+                 ref=None, fits=None):  # fmt: skip
     """Base, screening, cross-fitted singles and pairs, into ``state`` (kept when interrupted).
 
     ``state``: ``base_full``, ``base`` (scored), ``models`` (scored singles and
@@ -107,6 +117,7 @@ def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names,
     ``sigma`` or, with ``loss_scale="residual"``, the base's misfit); with
     ``ref`` (prepared reference cases) also ``base_suite`` and ``base_ref``
     (the base scored on each), and ``base``/``models`` hold losses of the change (``reference_loss``).
+    ``fits`` (:class:`~reachconf.diagnose.parallel.FitMap`) runs each stage's independent fits (default: here).
     With ``loss_scale="case"`` the cases of ``prepared`` (and ``ref``, with the
     same weights) are replaced in place by copies carrying their weights.
     """
@@ -127,9 +138,10 @@ def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names,
         ref[:] = [replace(r, weight=d.weight) for r, d in zip(ref, prepared)]
         base_ref_full = fit_candidate(model, Candidate(()), ref, sigma, fit_names, options, cache,
                                       start=dict(base_full.base_params))  # fmt: skip
-    sc = _Scorer(model, prepared, ref, folds, sigma, fit_names, options, cache, base_full, base_ref_full)
+    fits = fits or FitMap(1)
+    sc = _Scorer(model, prepared, ref, folds, sigma, fit_names, options, cache, base_full, base_ref_full, fits)
     base = cross_fit(model, Candidate(()), prepared, folds, sigma, fit_names, options, cache,
-                     start=dict(base_full.base_params))  # fmt: skip
+                     start=dict(base_full.base_params), fits=fits)  # fmt: skip
     if ref is not None:
         state["base_suite"] = base
         state["base_ref"] = cross_fit(model, Candidate(()), ref, folds, sigma, fit_names, options, cache,
@@ -141,23 +153,32 @@ def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names,
     state["base"] = base
     bar.update(1)
     screen, keys = state["screen"], []
-    for e, tgt in candidates:
-        bar.set_postfix_str(f"screen {e.name}({tgt})")
-        f, key = sc.screen(Candidate(((e, tgt),)))
-        screen.append(f)
-        keys.append(key)
+
+    def screened(i, fk):
+        screen.append(fk[0])
+        keys.append(fk[1])
+
+    bar.set_postfix_str("screen")
+    singles = [Candidate(((e, tgt),)) for e, tgt in candidates]
+    sc.run(singles, [partial(sc.screen, c) for c in singles], screened)
     order = sorted(range(len(screen)), key=lambda i: keys[i])
     screen[:] = [screen[i] for i in order]
     bar.update(1)
     models = state["models"]
-    for f in screen[: options.screen]:
-        bar.set_postfix_str(f.candidate.label)
-        models.append(sc.cross(f.candidate, {**base_full.base_params, **f.effect_params}))
+
+    def scored(i, m):
+        models.append(m)
         bar.update(1)
+
+    bar.set_postfix_str("cross-fit the best singles")
+    best = screen[: options.screen]
+    sc.run([f.candidate for f in best],
+           [partial(sc.cross, f.candidate, {**base_full.base_params, **f.effect_params}) for f in best], scored)
     # pairs of the best singles that predict the held-out cases better than the base at all (z >= 1)
     useful = [m for m in models if paired_test(m.losses, state["base"].losses, clusters)["z"] >= 1.0]
     ranked = sorted(useful, key=lambda m: m.total)
     top = ranked[: options.pair_top]
+    pairs, jobs = [], []
     for a, b in combinations(top, 2):
         if a.candidate.keys & b.candidate.keys:
             continue
@@ -165,10 +186,10 @@ def score_models(model, prepared, candidates, folds, clusters, sigma, fit_names,
         st = _start([a.folds, b.folds])
         for s, fb in zip(st, better.folds):
             s.update(fb.base_params)
-        cand = Candidate(a.candidate.parts + b.candidate.parts)
-        bar.set_postfix_str(cand.label)
-        models.append(sc.cross(cand, st))
-        bar.update(1)
+        pairs.append(Candidate(a.candidate.parts + b.candidate.parts))
+        jobs.append(partial(sc.cross, pairs[-1], st))
+    bar.set_postfix_str("cross-fit the pairs")
+    sc.run(pairs, jobs, scored)
     # a second effect can be masked by a large first one (screened alone, it imitates the first): the effects
     # screened again next to the best single — and next to a single the best does not beat (z < z_separate: the
     # data may hold either, e.g. a lag and a dead time) —, the best ``pair_next`` of the new pairs scored as well
@@ -186,21 +207,25 @@ def _next_to(first, sc, candidates, bar, models):
     fs = fold_start(first)
     effect_start = {k: v for k, v in fs.items() if isinstance(k, tuple)}
     st0 = {**sc.base_full.base_params, **effect_start}
-    nxt = []
+    cands = []
     for e, tgt in candidates:
         cand = Candidate(first.candidate.parts + ((e, tgt),))
         new_code = cand.structural and cand.structural not in sc.cache
         if (e.name, tgt) in first.candidate.keys or cand.keys in have or new_code:
             continue  # (no new model code is generated for this screen)
-        bar.set_postfix_str(f"next to {first.label}: {e.name}({tgt})")
-        nxt.append(sc.screen(cand, start=st0, ref_start=dict(effect_start)))
+        cands.append(cand)
+    bar.set_postfix_str(f"screen next to {first.label}")
+    nxt = sc.run(cands, [partial(sc.screen, c, start=st0, ref_start=dict(effect_start)) for c in cands], None)
     nxt.sort(key=lambda fk: fk[1])
+    todo, jobs = [], []
     for f, _ in nxt[: sc.options.pair_next]:
-        st = {**fs, **f.effect_params}
-        bar.set_postfix_str(f.candidate.label)
-        models.append(sc.cross(f.candidate, st))
+        todo.append(f.candidate)
+        jobs.append(partial(sc.cross, f.candidate, {**fs, **f.effect_params}))
         single = Candidate(f.candidate.parts[-1:])  # the pair must beat this one too (select.decide)
         if single.keys not in have:
             (key1,) = single.keys
-            models.append(sc.cross(single, {**sc.base_full.base_params, key1: f.effect_params[key1]}))
+            todo.append(single)
+            jobs.append(partial(sc.cross, single, {**sc.base_full.base_params, key1: f.effect_params[key1]}))
             have.add(single.keys)
+    bar.set_postfix_str(f"cross-fit next to {first.label}")
+    sc.run(todo, jobs, lambda i, m: models.append(m))

@@ -34,6 +34,7 @@ The decision (:func:`decide`):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -129,21 +130,24 @@ def paired_test(losses_a, losses_b, clusters) -> dict:
 
 
 def cross_fit(base_model, cand: Candidate, data, folds, sigma, fit_names, options, cache, start=None,
-              targets=None, score=None) -> Scored:  # fmt: skip
+              targets=None, score=None, fits=None) -> Scored:  # fmt: skip
     """Fit ``cand`` on all folds but one, predict the left-out fold; for each fold.
 
     ``start``: one dict of starting values for every fold, or a list with one per fold.  ``targets``: per fold,
     the residuals the training cases are fitted to (:func:`reachconf.diagnose.fit.fit_candidate`), or None.
     ``score(f, fit, idx)``: the per-window values of the held-out cases ``idx`` under fold ``f``'s fit (default:
-    their losses, :func:`reachconf.diagnose.fit.window_losses`).
+    their losses, :func:`reachconf.diagnose.fit.window_losses`).  ``fits``
+    (:class:`~reachconf.diagnose.parallel.FitMap`) runs the fold fits (default: one after the other, here).
     """
     k = int(folds.max()) + 1
-    fits = []
+    jobs = []
     for f in range(k):
         train = [d for d, g in zip(data, folds) if g != f]
         st = start[f] if isinstance(start, list) else start
         tg = targets[f] if targets is not None else None
-        fits.append(fit_candidate(base_model, cand, train, sigma, fit_names, options, cache, start=st, target=tg))
+        jobs.append(partial(fit_candidate, base_model, cand, train, sigma, fit_names, options, cache, start=st,
+                            target=tg))  # fmt: skip
+    fits = fits(jobs) if fits is not None else [job() for job in jobs]
 
     def values(f, idx):
         if score is not None:

@@ -111,7 +111,8 @@ def test_worker_timeout_reaches_every_pool_of_the_command(run_file, tmp_path, ca
     (("conform", "RUN", "--worker-timeout", "nan"), "positive, finite number of seconds"),
     (("reach", "RUN", "--worker-timeout", "soon"), "must be a number of seconds"),
     (("conform", "RUN", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"), "cannot connect"),
-    (("diagnose", "RUN", "--workers", "2"), "unrecognized arguments: --workers"),
+    (("diagnose", "RUN", "--scheduler", "tcp://127.0.0.1:1"), "unrecognized arguments: --scheduler"),
+    (("diagnose", "RUN", "--workers", "0"), "must be a positive integer, got 0"),
 ])  # fmt: skip
 def test_bad_pool_options_are_one_line_errors(run_file, capsys, argv, needle):
     status, out, err = main(capsys, *[str(run_file) if a == "RUN" else a for a in argv])

@@ -32,6 +32,7 @@ def test_locate_gap_finds_channel_segment_and_condition():
 # ---------------------------------------------------------------------------------------------------------------
 # which effect: the library, the joint fits and the report
 import json  # noqa: E402
+import multiprocessing  # noqa: E402
 
 import pytest  # noqa: E402
 
@@ -166,10 +167,12 @@ def test_cli_diagnose(tmp_path):
 
     sys.path.insert(0, str(tmp_path))
     try:
-        rc_code = main(["diagnose", str(run), "--json", str(tmp_path / "r.json"), "--out", str(tmp_path / "out")])
+        rc_code = main(["diagnose", str(run), "--json", str(tmp_path / "r.json"), "--out", str(tmp_path / "out"),
+                        "--workers", "2"])  # fmt: skip
         assert rc_code == 0
         d = json.loads((tmp_path / "r.json").read_text())
         assert d["decision"]["named"][0]["effect"] == "actuator_lag"
+        assert d["base"]["workers"] == (2 if "fork" in multiprocessing.get_all_start_methods() else 1)
         assert (tmp_path / "out" / "report.md").exists() and (tmp_path / "out" / "effects.png").exists()
         run.write_text('model = "osc:model"\nsuite = "suite"\n[diagnose]\neffects = ["warp"]\n')
         assert main(["diagnose", str(run)]) == 2

@@ -1,0 +1,127 @@
+"""The *which* step's independent fits on forked worker processes.
+
+The diagnosis fits some 40 candidate models whose fits do not depend on each
+other within a stage (the screens, the cross-fits of the best singles, the
+pairs).  :class:`FitMap` runs one stage's fits on ``workers`` processes
+*forked* from the calling one, so that they start with everything the caller
+has built — the prepared cases, the compiled models, the candidates' models —
+and nothing but the results travels (a model as its build recipe,
+:meth:`reachconf.Model.__reduce__`; an effect by its registered name,
+:meth:`reachconf.diagnose.effects.Effect.__reduce__`).  Each fit computes
+exactly what it computes in the calling process, so the report is the same
+with any number of workers.
+
+Where ``fork`` is not available (Windows, or a platform whose
+``multiprocessing`` lacks it), inside a worker process (a process started by
+``multiprocessing``, ``concurrent.futures`` or a Dask nanny: its pool
+already spreads the work over the cores) and when a candidate's effect is not
+registered (its callables may not be picklable), the fits run in this process.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import signal
+
+from reachconf.checks import check_workers
+from reachconf.errors import OptionsError
+
+__all__ = ["FitMap", "auto_workers", "picklable", "MAX_AUTO_WORKERS"]
+
+#: processes ``workers=None`` uses at most (one per core up to this)
+MAX_AUTO_WORKERS = 8
+
+_JOBS: list | None = None  # the stage's jobs, set before the workers fork (they inherit it)
+_IN_WORKER = False
+
+
+def _can_fork() -> bool:
+    return "fork" in mp.get_all_start_methods()
+
+
+def auto_workers() -> int:
+    """``workers=None``: ``$REACHCONF_DIAGNOSE_WORKERS`` if set, else one process per core this process may use
+    (at most :data:`MAX_AUTO_WORKERS`); 1 in a process started by ``multiprocessing`` (a pool worker) or where
+    processes cannot be forked."""
+    if _IN_WORKER or mp.parent_process() is not None or not _can_fork():
+        return 1
+    text = os.environ.get("REACHCONF_DIAGNOSE_WORKERS")
+    if text:
+        try:
+            return check_workers(int(text), "REACHCONF_DIAGNOSE_WORKERS")
+        except ValueError:
+            raise OptionsError(f"REACHCONF_DIAGNOSE_WORKERS must be a positive integer, got {text!r}") from None
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # pragma: no cover - not Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, MAX_AUTO_WORKERS))
+
+
+def picklable(objects) -> bool:
+    """Whether every object can travel between processes (a registered effect always can)."""
+    import pickle
+
+    try:
+        for obj in objects:
+            pickle.dumps(obj)
+    except Exception:  # noqa: BLE001 - any failure to pickle (lambdas, local functions, locks)
+        return False
+    return True
+
+
+def _worker_init():
+    global _IN_WORKER
+    _IN_WORKER = True
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the calling process's: it stops the pool
+
+
+def _run(i):
+    return _JOBS[i]()
+
+
+class FitMap:
+    """Run a stage's independent jobs (callables without arguments) on forked processes, results in order.
+
+    Parameters
+    ----------
+    workers : int or None
+        Number of processes (None: :func:`auto_workers`; 1: this process).
+    """
+
+    def __init__(self, workers=None):
+        if workers is None:
+            self.workers = auto_workers()
+        else:
+            self.workers = check_workers(workers, "diagnose: workers")
+            if self.workers > 1 and (not _can_fork() or _IN_WORKER):
+                self.workers = 1
+
+    def __call__(self, jobs, done=None) -> list:
+        """``[job() for job in jobs]``, on the processes when there is more than one job and one process.
+
+        ``done(i, result)`` is called in this process as each result arrives (in job order).
+        """
+        global _JOBS
+        jobs = list(jobs)
+        n = min(self.workers, len(jobs))
+        out = []
+        if n <= 1 or _IN_WORKER:
+            for i, job in enumerate(jobs):
+                out.append(job())
+                if done is not None:
+                    done(i, out[-1])
+            return out
+        if _JOBS is not None:  # pragma: no cover - a stage inside a stage runs in the calling process
+            raise OptionsError("FitMap: stages cannot be nested")
+        _JOBS = jobs
+        try:
+            with mp.get_context("fork").Pool(n, initializer=_worker_init) as pool:
+                for i, res in enumerate(pool.imap(_run, range(len(jobs)))):
+                    out.append(res)
+                    if done is not None:
+                        done(i, res)
+        finally:
+            _JOBS = None
+        return out

@@ -1,0 +1,75 @@
+"""The *which* step's fits on forked processes: the same report as in one process, and safe fallbacks."""
+
+import json
+import multiprocessing as mp
+import pickle
+
+import numpy as np
+import pytest
+
+import reachconf as rc
+from reachconf.diagnose import EFFECTS
+from reachconf.diagnose.effects import Effect
+from reachconf.diagnose.parallel import FitMap, auto_workers, picklable
+from reachconf.errors import OptionsError
+
+from test_diagnose import _oscillator_suite
+
+fork_only = pytest.mark.skipif("fork" not in mp.get_all_start_methods(), reason="needs fork")
+
+
+def _auto_in_child(q):
+    q.put(auto_workers())
+
+
+def test_registered_effects_travel_by_name_and_others_by_value():
+    for e in EFFECTS.values():
+        assert pickle.loads(pickle.dumps(e)) is e
+    lam = Effect("my_offset", "input", ("c",), lambda x: (0.0,), lambda x: ((-1.0,), (1.0,)),
+                 signal=lambda t, u, th: u + th[0])  # fmt: skip
+    assert not lam.registered and not picklable([lam])
+    assert picklable(list(EFFECTS.values()))
+
+
+@fork_only
+def test_fit_map_keeps_job_order_and_reports_each_result():
+    seen = []
+    out = FitMap(2)([lambda i=i: i * i for i in range(7)], done=lambda i, r: seen.append((i, r)))
+    assert out == [i * i for i in range(7)]
+    assert seen == list(enumerate(out))
+    assert FitMap(1)([lambda: 3]) == [3]
+    with pytest.raises(OptionsError, match="workers"):
+        FitMap(0)
+
+
+@fork_only
+def test_auto_workers_is_one_inside_a_worker_process():
+    assert auto_workers() >= 1
+    ctx = mp.get_context("fork")
+    q = ctx.Queue()
+    p = ctx.Process(target=_auto_in_child, args=(q,))
+    p.start()
+    p.join(60)
+    assert q.get(timeout=5) == 1
+
+
+@fork_only
+def test_diagnosis_on_two_processes_equals_the_one_process_report():
+    m, suite = _oscillator_suite(lag=0.1, n=4)
+    one = rc.diagnose(m, suite, progress=False, workers=1)
+    two = rc.diagnose(m, suite, progress=False, workers=2)
+    assert one.base["workers"] == 1 and two.base["workers"] == 2
+    assert json.dumps(one.decision, sort_keys=True, default=str) == json.dumps(two.decision, sort_keys=True,
+                                                                               default=str)  # fmt: skip
+    assert [e["label"] for e in one.ranked_effects] == [e["label"] for e in two.ranked_effects]
+    for a, b in zip(one.ranked_effects, two.ranked_effects):
+        assert json.dumps(a, sort_keys=True, default=str) == json.dumps(b, sort_keys=True, default=str)
+    assert one.verdict == two.verdict and "actuator_lag" in one.verdict
+    for x, y in zip([one.scores["base"]] + [s["losses"] for s in one.scores["models"]],
+                    [two.scores["base"]] + [s["losses"] for s in two.scores["models"]]):  # fmt: skip
+        np.testing.assert_array_equal(x, y)
+    # an effect that cannot travel (lambdas, not registered) keeps the fits in this process
+    lam = Effect("my_offset", "input", ("c",), lambda x: (0.0,), lambda x: ((-1.0,), (1.0,)),
+                 signal=lambda t, u, th: u + th[0])  # fmt: skip
+    rep = rc.diagnose(m, suite, effects=[lam, "actuator_lag"], progress=False, workers=2)
+    assert rep.base["workers"] == 1 and "actuator_lag" in rep.verdict
