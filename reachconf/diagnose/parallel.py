@@ -23,6 +23,9 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 
 from reachconf.checks import check_workers
 from reachconf.errors import OptionsError
@@ -117,11 +120,18 @@ class FitMap:
             raise OptionsError("FitMap: stages cannot be nested")
         _JOBS = jobs
         try:
-            with mp.get_context("fork").Pool(n, initializer=_worker_init) as pool:
-                for i, res in enumerate(pool.imap(_run, range(len(jobs)))):
+            with ProcessPoolExecutor(n, mp_context=mp.get_context("fork"), initializer=_worker_init) as pool:
+                for res in pool.map(_run, range(len(jobs))):
                     out.append(res)
                     if done is not None:
-                        done(i, res)
+                        done(len(out) - 1, res)
+        except BrokenProcessPool:  # a worker died (killed, out of memory): the rest runs here, nothing is lost
+            warnings.warn(f"diagnose: a fit worker process died; the {len(jobs) - len(out)} remaining fits of this "
+                          f"stage run in the calling process", RuntimeWarning, stacklevel=2)  # fmt: skip
+            for i in range(len(out), len(jobs)):
+                out.append(jobs[i]())
+                if done is not None:
+                    done(i, out[-1])
         finally:
             _JOBS = None
         return out

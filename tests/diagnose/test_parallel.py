@@ -73,3 +73,20 @@ def test_diagnosis_on_two_processes_equals_the_one_process_report():
                  signal=lambda t, u, th: u + th[0])  # fmt: skip
     rep = rc.diagnose(m, suite, effects=[lam, "actuator_lag"], progress=False, workers=2)
     assert rep.base["workers"] == 1 and "actuator_lag" in rep.verdict
+
+
+def _dies_in_a_worker(value):
+    import os
+
+    from reachconf.diagnose import parallel
+
+    if parallel._IN_WORKER and value == 2:
+        os._exit(9)  # as if killed
+    return value
+
+
+@fork_only
+def test_a_dead_worker_loses_nothing():
+    with pytest.warns(RuntimeWarning, match="worker process died"):
+        out = FitMap(2)([lambda v=v: _dies_in_a_worker(v) for v in range(5)])
+    assert out == list(range(5))
