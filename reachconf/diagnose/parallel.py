@@ -11,11 +11,12 @@ and nothing but the results travels (a model as its build recipe,
 exactly what it computes in the calling process, so the report is the same
 with any number of workers.
 
-Where ``fork`` is not available (Windows, or a platform whose
-``multiprocessing`` lacks it), inside a worker process (a process started by
+The fits run in the calling process where processes are not forked (other
+systems than Linux: Windows has no ``fork``, and on macOS a forked process
+may crash in Apple's libraries), inside a worker process (one started by
 ``multiprocessing``, ``concurrent.futures`` or a Dask nanny: its pool
-already spreads the work over the cores) and when a candidate's effect is not
-registered (its callables may not be picklable), the fits run in this process.
+already spreads the work over the cores), and when a candidate's effect
+cannot be pickled (an unregistered effect with lambdas).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
+import sys
 import warnings
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -40,7 +42,9 @@ _IN_WORKER = False
 
 
 def _can_fork() -> bool:
-    return "fork" in mp.get_all_start_methods()
+    # Linux only: on macOS a forked child of a process that has used Apple's frameworks (Accelerate) may crash,
+    # which is why Python starts processes there by spawning; spawned workers would rebuild everything
+    return sys.platform.startswith("linux") and "fork" in mp.get_all_start_methods()
 
 
 def auto_workers() -> int:
