@@ -6,6 +6,7 @@ Example::
     suite = "suite"                    # folder, relative to this file
     segment_length = 2.0               # optional: cut the cases into segments of this many seconds
     segment_step = 0.5                 # optional: a new segment every 0.5 s (overlapping); default the length
+    workers = 2                        # optional: local worker processes (per case; diagnose: for its fits)
     [params]                           # optional parameter overrides
     c_f = 9.7
     [sets]                             # intervals as [lo, hi] per channel, in the model's order
