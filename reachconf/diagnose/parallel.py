@@ -25,6 +25,7 @@ import multiprocessing as mp
 import os
 import signal
 import sys
+import threading
 import warnings
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -39,6 +40,7 @@ MAX_AUTO_WORKERS = 8
 
 _JOBS: list | None = None  # the stage's jobs, set before the workers fork (they inherit it)
 _IN_WORKER = False
+_STAGE_LOCK = threading.Lock()
 
 
 def _can_fork() -> bool:
@@ -114,14 +116,14 @@ class FitMap:
         jobs = list(jobs)
         n = min(self.workers, len(jobs))
         out = []
-        if n <= 1 or _IN_WORKER:
+        # one stage at a time forks (the jobs are a module global the workers inherit): a stage of another
+        # thread's diagnosis meanwhile runs in the calling process
+        if n <= 1 or _IN_WORKER or not _STAGE_LOCK.acquire(blocking=False):
             for i, job in enumerate(jobs):
                 out.append(job())
                 if done is not None:
                     done(i, out[-1])
             return out
-        if _JOBS is not None:  # pragma: no cover - a stage inside a stage runs in the calling process
-            raise OptionsError("FitMap: stages cannot be nested")
         _JOBS = jobs
         try:
             with ProcessPoolExecutor(n, mp_context=mp.get_context("fork"), initializer=_worker_init) as pool:
@@ -138,4 +140,5 @@ class FitMap:
                     done(i, out[-1])
         finally:
             _JOBS = None
+            _STAGE_LOCK.release()
         return out

@@ -91,3 +91,20 @@ def test_a_dead_worker_loses_nothing():
     with pytest.warns(RuntimeWarning, match="worker process died"):
         out = FitMap(2)([lambda v=v: _dies_in_a_worker(v) for v in range(5)])
     assert out == list(range(5))
+
+
+@fork_only
+def test_stages_of_concurrent_threads_do_not_mix():
+    import threading
+
+    results = {}
+
+    def run(tag):
+        results[tag] = FitMap(2)([lambda v=v: (tag, v) for v in range(6)])
+
+    threads = [threading.Thread(target=run, args=(t,)) for t in "ab"]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(120)
+    assert results == {t: [(t, v) for v in range(6)] for t in "ab"}
