@@ -214,7 +214,9 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     candidates = resolve_effects(model, effects)
     if not candidates:
         raise OptionsError("effects: no candidate effect applies to this model")
-    fits = FitMap(workers if picklable({e for e, _ in candidates}) else 1)
+    fits = FitMap(workers)  # (checks ``workers`` whatever the effects)
+    if fits.workers > 1 and not picklable({e for e, _ in candidates}):
+        fits = FitMap(1)  # an effect that cannot travel between processes keeps the fits here
 
     prepared = [prepare(model, c, options) for c in cases]
     ref_prepared = prepare_reference(model, reference, prepared, options) if reference is not None else None

@@ -108,3 +108,19 @@ def test_stages_of_concurrent_threads_do_not_mix():
     for t in threads:
         t.join(120)
     assert results == {t: [(t, v) for v in range(6)] for t in "ab"}
+
+
+def test_bad_workers_are_named_errors_before_any_work(monkeypatch):
+    m, suite = _oscillator_suite(lag=0.1, n=2)
+    lam = Effect("my_offset", "input", ("c",), lambda x: (0.0,), lambda x: ((-1.0,), (1.0,)),
+                 signal=lambda t, u, th: u + th[0])  # fmt: skip
+    for bad in (0, -2, 1.5, True, "two"):
+        with pytest.raises(OptionsError, match="workers"):
+            rc.diagnose(m, suite, progress=False, workers=bad)
+        with pytest.raises(OptionsError, match="workers"):  # also where the effects keep the fits in this process
+            rc.diagnose(m, suite, effects=[lam], progress=False, workers=bad)
+    if sys.platform.startswith("linux"):  # (read only where the fits are forked)
+        for text in ("0", "abc", "1.5"):
+            monkeypatch.setenv("REACHCONF_DIAGNOSE_WORKERS", text)
+            with pytest.raises(OptionsError, match="REACHCONF_DIAGNOSE_WORKERS"):
+                rc.diagnose(m, suite, progress=False)
