@@ -110,7 +110,7 @@ class Effect:
     def __reduce__(self):
         # a registered effect travels by name (its callables are often lambdas): the diagnosis's worker
         # processes (reachconf.diagnose.parallel) send fit results holding it back to the calling process
-        if EFFECTS.get(self.name) is self:
+        if self.registered:
             return (registered_effect, (self.name,))
         return (Effect, tuple(getattr(self, f.name) for f in fields(self)))
 

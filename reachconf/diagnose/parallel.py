@@ -90,6 +90,15 @@ def _run(i):
     return _JOBS[i]()
 
 
+def _here(jobs, out, done):
+    """Run the jobs after the ``len(out)`` finished ones in this process, appending to ``out``."""
+    for i in range(len(out), len(jobs)):
+        out.append(jobs[i]())
+        if done is not None:
+            done(i, out[-1])
+    return out
+
+
 class FitMap:
     """Run a stage's independent jobs (callables without arguments) on forked processes, results in order.
 
@@ -119,11 +128,7 @@ class FitMap:
         # one stage at a time forks (the jobs are a module global the workers inherit): a stage of another
         # thread's diagnosis meanwhile runs in the calling process
         if n <= 1 or _IN_WORKER or not _STAGE_LOCK.acquire(blocking=False):
-            for i, job in enumerate(jobs):
-                out.append(job())
-                if done is not None:
-                    done(i, out[-1])
-            return out
+            return _here(jobs, out, done)
         _JOBS = jobs
         try:
             with ProcessPoolExecutor(n, mp_context=mp.get_context("fork"), initializer=_worker_init) as pool:
@@ -134,10 +139,7 @@ class FitMap:
         except BrokenProcessPool:  # a worker died (killed, out of memory): the rest runs here, nothing is lost
             warnings.warn(f"diagnose: a fit worker process died; the {len(jobs) - len(out)} remaining fits of this "
                           f"stage run in the calling process", RuntimeWarning, stacklevel=2)  # fmt: skip
-            for i in range(len(out), len(jobs)):
-                out.append(jobs[i]())
-                if done is not None:
-                    done(i, out[-1])
+            _here(jobs, out, done)
         finally:
             _JOBS = None
             _STAGE_LOCK.release()

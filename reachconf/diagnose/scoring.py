@@ -46,11 +46,11 @@ class _Scorer:
     """Cross-fits and screens on the suite, and with a reference also on it (losses of the change, screens of it)."""
 
     def __init__(self, model, prepared, ref, folds, sigma, fit_names, options, cache, base_full, base_ref_full,
-                 fits=None):  # fmt: skip
+                 fits):  # fmt: skip
         self.model, self.prepared, self.ref, self.folds = model, prepared, ref, folds
         self.sigma, self.fit_names, self.options, self.cache = sigma, fit_names, options, cache
         self.base_full, self.base_ref_full = base_full, base_ref_full
-        self.fits = fits or FitMap(1)
+        self.fits = fits
 
     def run(self, cands, jobs, done):
         """A stage's jobs (one per candidate of ``cands``) on :attr:`fits`, their models built here first (the
