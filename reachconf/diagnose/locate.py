@@ -134,7 +134,7 @@ def _segments(mask, t, min_len):
 
 
 def locate_gap(model, suite, V=None, envelope: float = 4.0, min_duration: float = 0.2, group_share: float = 0.6,
-               options: TraceOptions | None = None) -> GapLocation:  # fmt: skip
+               options: TraceOptions | None = None, traces=None) -> GapLocation:  # fmt: skip
     """Locate the sim-to-real gap of ``model`` on ``suite`` (see module docstring).
 
     Parameters
@@ -158,7 +158,11 @@ def locate_gap(model, suite, V=None, envelope: float = 4.0, min_duration: float 
     cases = suite_cases(suite, "locate_gap")
     if model.q == 0:
         raise ConformanceError(f"model {model.name!r} has no disturbances to locate")
-    traces = {c.name: trace_disturbances(model, c, V=V, options=options) for c in cases}
+    if traces is None:
+        traces = [trace_disturbances(model, c, V=V, options=options) for c in cases]
+    elif len(traces) != len(cases) or any(r.case != c.name for r, c in zip(traces, cases)):
+        raise OptionsError("locate_gap: traces must hold one TraceResult per case of the suite, in its order")
+    traces = {c.name: r for c, r in zip(cases, traces)}
     names = list(model.disturbance_names)
     allW = np.vstack([r.W_trace for r in traces.values()])
     med = np.median(allW, axis=0)

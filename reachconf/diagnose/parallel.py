@@ -1,8 +1,9 @@
-"""The *which* step's independent fits on forked worker processes.
+"""The diagnosis's independent fits on forked worker processes.
 
 The diagnosis fits some 40 candidate models whose fits do not depend on each
 other within a stage (the screens, the cross-fits of the best singles, the
-pairs).  :class:`FitMap` runs one stage's fits on ``workers`` processes
+pairs; then the named model's per-group fits, the base's disturbance trace of
+each case and each model's *how far* boxes).  :class:`FitMap` runs one stage's fits on ``workers`` processes
 *forked* from the calling one, so that they start with everything the caller
 has built — the prepared cases, the compiled models, the candidates' models —
 and nothing but the results travels (a model as its build recipe,

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import os
 import time
+from functools import partial
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -130,6 +131,12 @@ def _cpu_time() -> float:
     return time.process_time() + t.children_user + t.children_system
 
 
+def _boxes(model, segments, V, reach: bool) -> tuple:
+    """*How far* of one model on ``segments``: its minimal trace-conformant W box, its minimal V box with W = 0
+    (each None when not found) and, with ``reach``, its reachset-conformant W (:func:`.howfar.reachset_W`)."""
+    return minimal_box(model, segments, V), measurement_box(model, segments), reachset_W(model, segments, V) if reach else None
+
+
 def _fit_names(model, fit_params):
     if fit_params is True:
         return tuple(model.param_names)
@@ -181,7 +188,10 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         loss).  Every scored model is also fitted on the reference, which
         doubles the time of the *which* step.
     workers : int, optional
-        Processes that run the *which* step's independent fits
+        Processes that run the independent jobs of each stage — the *which*
+        step's fits, the named model's per-group fits, the base's
+        disturbance trace of every case (once, for *where*, *how far* and the
+        model-free check) and each model's *how far* boxes
         (:mod:`reachconf.diagnose.parallel`; forked from this one).  Default:
         one per core (at most 8), or 1 inside a worker process of a pool
         and where processes cannot be forked.  The report is the same for
@@ -254,7 +264,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
 
     def full(m):
         if m.label not in fulls:
-            fulls[m.label] = full_fit(model, m, prepared, scale, fit_names, options, cache)
+            fulls[m.label] = full_fit(model, m, prepared, scale, fit_names, options, cache, fits=fits)
         return fulls[m.label]
 
     def mimic(a, b):  # can the data separate b from the chosen a? (select.decide, separable.mimic_loss)
@@ -320,22 +330,26 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     box_test = test[: options.box_cases]
     test_base = decimated_cases(model, base0, test, k, substeps=options.substeps)
     train_base = decimated_cases(model, base0, train, k, substeps=options.substeps)
-    where = {"location": locate_gap(base0.model, TestSuite(train_base + test_base), V=V).to_dict()}
+    # the base's disturbance traces of every case, once, for where, how far (eps) and the model-free check
+    traces = fits([partial(trace_disturbances, base0.model, c, V=V) for c in train_base + test_base])
+    train_traces, test_traces = traces[: len(train_base)], traces[len(train_base) :]
+    where = {"location": locate_gap(base0.model, TestSuite(train_base + test_base), V=V, traces=traces).to_dict()}
     avp = actuator_vs_process(model, base0, box_test, V, k, options.box_segment)
     if avp is not None:
         where["actuator_vs_process"] = avp
     channels = list(model.disturbance_names)
     timings["where"] = _cpu_time() - c_start - sum(timings.values())
-    per_step = [trace_disturbances(base0.model, c, V=V).W_trace for c in test_base]
-    eps = 1e-9 + 0.05 * np.ptp(np.vstack(per_step), axis=0)
+    eps = 1e-9 + 0.05 * np.ptp(np.vstack([r.W_trace for r in test_traces]), axis=0)
     segs_base = decimated_cases(model, base0, box_test, k, options.box_segment, options.substeps)
-    base_box = minimal_box(base0.model, segs_base, V)
-    if base_box is None:
-        raise ConformanceError("diagnose: no minimal disturbance box found for the refitted base model")
     segs_after = segs_base
     if chosen is not None:
         segs_after = decimated_cases(model, after0, box_test, k, options.box_segment, options.substeps)
-    after_box = minimal_box(after0.model, segs_after, V) if chosen is not None else base_box
+    # the boxes of the base and of the named model: independent, one job each
+    pairs = [(base0, segs_base), (after0, segs_after)] if chosen is not None else [(base0, segs_base)]
+    boxes = fits([partial(_boxes, f.model, segs, V, reach) for f, segs in pairs])
+    (base_box, vb, reach_b), (after_box, va, reach_a) = boxes[0], boxes[-1]
+    if base_box is None:
+        raise ConformanceError("diagnose: no minimal disturbance box found for the refitted base model")
     before_after, shrink = {}, None
     if after_box is not None:
         shrink, per = box_shrink(base_box, after_box, eps, channels)
@@ -343,15 +357,12 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
                                   "after": [float(after_box[0][i]), float(after_box[1][i])], "shrink": per[ch]}
                              for i, ch in enumerate(channels)}  # fmt: skip
         before_after["W_volume_shrink"] = shrink
-    vb = measurement_box(base0.model, segs_base)
-    va = measurement_box(after0.model, segs_after) if chosen is not None else vb
     if vb is not None and va is not None:
         before_after["V"] = {ch: {"before": [float(vb[0][i]), float(vb[1][i])], "after": [float(va[0][i]), float(va[1][i])],
                                   "shrink": float((box_size(vb)[i] + 1e-12) / (box_size(va)[i] + 1e-12))}
                              for i, ch in enumerate(model.output_names)}  # fmt: skip
     if reach:
-        rb, okb = reachset_W(base0.model, segs_base, V)
-        ra, oka = reachset_W(after0.model, segs_after, V) if chosen is not None else (rb, okb)
+        (rb, okb), (ra, oka) = reach_b, reach_a
         if rb is not None and ra is not None:
             before_after["W_reachset"] = {
                 ch: {"before": [float(rb[0][i]), float(rb[1][i])], "after": [float(ra[0][i]), float(ra[1][i])],
@@ -369,8 +380,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     timings["how_far"] = _cpu_time() - c_start - sum(timings.values())
     # model-free check on the training cases of the first fold
     blocks, traces, names = [], [], None
-    for c in train_base:
-        tr = trace_disturbances(base0.model, c, V=V)
+    for c, tr in zip(train_base, train_traces):
         F, names = feature_dictionary(c.t, np.asarray(c.U, float), np.asarray(c.Y, float), model.input_names,
                                       model.output_names)  # fmt: skip
         blocks.append(F)

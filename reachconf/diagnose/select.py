@@ -314,11 +314,14 @@ def maneuver_parts(data) -> list:
     return list(groups.values()) if len(groups) >= MIN_PARTS else [[d] for d in data]
 
 
-def full_fit(base_model, scored: Scored, data, sigma, fit_names, options, cache, spread: bool = True) -> FitResult:
+def full_fit(base_model, scored: Scored, data, sigma, fit_names, options, cache, spread: bool = True,
+             fits=None) -> FitResult:  # fmt: skip
     """The chosen candidate fitted on all cases, for its parameters and their intervals.
 
     With ``spread``, it is also fitted on each group of cases alone (on each
     case when there are fewer than three groups): ``FitResult.spread``.
+    ``fits`` (:class:`~reachconf.diagnose.parallel.FitMap`) runs those fits
+    (default: one after the other, here).
     """
     start = fold_start(scored)
     fit = fit_candidate(base_model, scored.candidate, data, sigma, fit_names, options, cache, start=start)
@@ -326,8 +329,9 @@ def full_fit(base_model, scored: Scored, data, sigma, fit_names, options, cache,
         parts = maneuver_parts(data)
         if len(parts) >= MIN_PARTS:
             st = {**fit.base_params, **fit.effect_params}
-            for sub in parts:
-                fg = fit_candidate(base_model, scored.candidate, sub, sigma, fit_names, options, cache, start=st)
+            jobs = [partial(fit_candidate, base_model, scored.candidate, sub, sigma, fit_names, options, cache, start=st)
+                    for sub in parts]  # fmt: skip
+            for fg in fits(jobs) if fits is not None else [job() for job in jobs]:
                 for key, th in fg.effect_params.items():
                     fit.spread.setdefault(key, []).append(tuple(float(v) for v in th))
     return fit

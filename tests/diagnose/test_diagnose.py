@@ -1,6 +1,7 @@
 """Gap location: a disturbance pulse injected in one channel and time window is found there."""
 
 import numpy as np
+import pytest
 
 import reachconf as rc
 from reachconf.io import TestCase, TestSuite
@@ -27,13 +28,18 @@ def test_locate_gap_finds_channel_segment_and_condition():
     assert "w2" in rep.conditions and rep.conditions["w2"]
     assert "w2, 2.0-3.0 s" in rep.summary() or "w2, 1.9" in rep.summary() or "w2, 2.1" in rep.summary()
     assert '"shares"' in rep.to_json()
+    # the traces a caller has already computed give the same location; traces of other cases are refused
+    from reachconf.conformance.trace import trace_disturbances
+
+    traces = [trace_disturbances(m, c) for c in cases]
+    assert rc.locate_gap(m, TestSuite(cases), traces=traces).to_json() == rep.to_json()
+    with pytest.raises(rc.OptionsError, match="locate_gap: traces must hold one TraceResult per case"):
+        rc.locate_gap(m, TestSuite(cases), traces=traces[::-1])
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # which effect: the library, the joint fits and the report
 import json  # noqa: E402
-
-import pytest  # noqa: E402
 
 from reachconf.diagnose import EFFECTS, DiagnoseOptions  # noqa: E402
 from reachconf.errors import ConformanceError, OptionsError  # noqa: E402

@@ -1,4 +1,4 @@
-"""The *which* step's fits on forked processes: the same report as in one process, and safe fallbacks."""
+"""The diagnosis's fits and traces on forked processes: the same report as in one process, and safe fallbacks."""
 
 import json
 import multiprocessing as mp
@@ -66,6 +66,11 @@ def test_diagnosis_on_two_processes_equals_the_one_process_report():
     for a, b in zip(one.ranked_effects, two.ranked_effects):
         assert json.dumps(a, sort_keys=True, default=str) == json.dumps(b, sort_keys=True, default=str)
     assert one.verdict == two.verdict and "actuator_lag" in one.verdict
+    # where, how far and the model-free check (the traces and the two boxes run on the workers too)
+    for part in ("where", "before_after", "features"):
+        assert json.dumps(getattr(one, part), sort_keys=True, default=str) == json.dumps(
+            getattr(two, part), sort_keys=True, default=str), part  # fmt: skip
+    assert one.before_after["W"] and one.where["location"]["shares"]
     for x, y in zip([one.scores["base"]] + [s["losses"] for s in one.scores["models"]],
                     [two.scores["base"]] + [s["losses"] for s in two.scores["models"]]):  # fmt: skip
         np.testing.assert_array_equal(x, y)
@@ -74,6 +79,17 @@ def test_diagnosis_on_two_processes_equals_the_one_process_report():
                  signal=lambda t, u, th: u + th[0])  # fmt: skip
     rep = rc.diagnose(m, suite, effects=[lam, "actuator_lag"], progress=False, workers=2)
     assert rep.base["workers"] == 1 and "actuator_lag" in rep.verdict
+
+
+@fork_only
+def test_reachset_W_of_both_models_on_two_processes_equals_one_process():
+    """With ``reach=True`` the synthesis of each model's W runs in its own worker (it starts its own pool there)."""
+    m, suite = _oscillator_suite(lag=0.2, n=4, seed=5)
+    reps = [rc.diagnose(m, suite, effects=["actuator_lag"], progress=False, reach=True, workers=w) for w in (1, 2)]
+    assert reps[1].base["workers"] == 2
+    assert reps[0].before_after["W_reachset_conformant"] == {"before": True, "after": True}
+    assert json.dumps(reps[0].before_after, sort_keys=True, default=str) == json.dumps(
+        reps[1].before_after, sort_keys=True, default=str)  # fmt: skip
 
 
 def _dies_in_a_worker(value):
