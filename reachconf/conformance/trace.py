@@ -322,8 +322,10 @@ class TraceResult(JsonResult):
         axes[0].set_ylabel("disturbance w")
         axes[1].set_ylabel("measurement error v")
         axes[1].set_xlabel("t [s]")
+        # matplotlib's "best" placement searches every vertex: on a long trace it takes seconds (and warns)
+        loc = "best" if self.W_trace.shape[0] * max(q, p) <= 20_000 else "upper right"
         for a in axes:
-            a.legend(fontsize=7, ncol=3)
+            a.legend(fontsize=7, ncol=3, loc=loc)
         axes[0].set_title(f"{self.case}: {self.verdict.label} ({self.method})")
         return axes
 
