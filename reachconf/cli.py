@@ -336,7 +336,7 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--json", help="write machine-readable results to this file")
         sp.add_argument("--out", required=out_required, help="folder for pictures and result files"
                         + (" (required)" if out_required else ""))  # fmt: skip
-        if pool:  # the diagnosis of one suite runs in this process: no worker options there
+        if pool:  # (diagnose adds its own --workers: forked fit processes, no Dask scheduler)
             add_pool_options(sp, commands.positive_int)
         sp.add_argument("--time-limit", type=positive_seconds, default=None, dest="time_limit",
                         help="seconds per case and kind; a run projected to take longer stops after its first part")  # fmt: skip
