@@ -160,7 +160,8 @@ def locate_gap(model, suite, V=None, envelope: float = 4.0, min_duration: float 
         raise ConformanceError(f"model {model.name!r} has no disturbances to locate")
     if traces is None:
         traces = [trace_disturbances(model, c, V=V, options=options) for c in cases]
-    elif len(traces) != len(cases) or any(r.case != c.name for r, c in zip(traces, cases)):
+    elif (not isinstance(traces, (list, tuple)) or len(traces) != len(cases)
+          or any(getattr(r, "case", None) != c.name or not hasattr(r, "W_trace") for r, c in zip(traces, cases))):  # fmt: skip
         raise OptionsError("locate_gap: traces must hold one TraceResult per case of the suite, in its order")
     traces = {c.name: r for c, r in zip(cases, traces)}
     names = list(model.disturbance_names)

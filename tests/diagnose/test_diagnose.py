@@ -35,6 +35,8 @@ def test_locate_gap_finds_channel_segment_and_condition():
     assert rc.locate_gap(m, TestSuite(cases), traces=traces).to_json() == rep.to_json()
     with pytest.raises(rc.OptionsError, match="locate_gap: traces must hold one TraceResult per case"):
         rc.locate_gap(m, TestSuite(cases), traces=traces[::-1])
+    with pytest.raises(rc.OptionsError, match="locate_gap: traces must hold one TraceResult per case"):
+        rc.locate_gap(m, TestSuite(cases), traces=[r.W_trace for r in traces])
 
 
 # ---------------------------------------------------------------------------------------------------------------
