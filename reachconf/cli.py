@@ -170,8 +170,7 @@ def cmd_reach(args, run):
             entry["npz"] = str(tube.save(out / f"{name}_tube.npz"))
             fig, ax = plt.subplots(figsize=(8, 4))
             tube.plot(ax=ax, label="reach tube", measured=case)
-            # beside the axes: never over the tube, and no "best" placement searched over a long tube's vertices
-            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # beside: no "best" search
             fig.tight_layout()
             _savefig(fig, out / f"{name}_tube.png")
             entry["png"] = str(out / f"{name}_tube.png")
