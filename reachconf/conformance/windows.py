@@ -31,7 +31,7 @@ import numpy as np
 from reachconf.budget import progress_bar
 from reachconf.conformance.optctrl import NO_TRACE, fine_grid, optctrl_trace
 from reachconf.errors import ConformanceError
-from reachconf.model.outputs import affine_output, evaluate_outputs, output_index_of_states
+from reachconf.model.outputs import affine_output, evaluate_outputs, output_index_of_states, state_guess
 from reachconf_kernels.integrate import rk4_trace
 from reachconf_kernels.tracefit import perstep_fit
 
@@ -181,13 +181,13 @@ def disturbance_trace_in_windows(model, t, U, Y, Yx, W_lo, W_hi, V_lo, V_hi, opt
     records ``(a, c, method, reason)`` and messages of Alg. 2.
     """
     K = t.size
-    n, q = model.n, model.q
+    q = model.q
     r = int(options.subdivision) if method != "perstep" else 1
     if method == "auto" and r != 1:
         r = 1  # the per-step fit has one disturbance per sample interval; auto keeps that grid
     plan = window_plan(K, options.window, options.overlap)
     if x0 is None:
-        x0 = Yx[0].copy() if Yx is not None else np.zeros(n)
+        x0 = Yx[0].copy() if Yx is not None else state_guess(model, U[0], Y[0])
     W = np.zeros(((K - 1) * r, q))
     records, messages = [], []
     starts = [np.array(x0, dtype=float)]  # the state at the start of each window

@@ -26,7 +26,7 @@ from reachconf_kernels.integrate import eval_outputs
 from reachconf_kernels.linsys import interval_matrix_times_zonotope
 
 __all__ = ["output_enclosure", "affine_output", "evaluate_outputs", "state_estimate", "output_index_of_states",
-           "state_index_of_outputs"]  # fmt: skip
+           "state_index_of_outputs", "state_guess"]  # fmt: skip
 
 
 def affine_output(model):
@@ -238,3 +238,39 @@ def state_estimate(model, case) -> np.ndarray:
         if np.max(np.abs(steps)) <= 1e-12 * (1 + np.max(np.abs(X))):
             return X
     raise ConformanceError(f"model {model.name!r}: could not invert the output map h to estimate the states")
+
+
+def state_guess(model, u, y, iterations: int = 30) -> np.ndarray:
+    """A state consistent with one sample's measured outputs when they do not determine it: the start of Alg. 2.
+
+    Least squares ``h(x, u) = y`` by Gauss–Newton from ``x = 0`` with minimum-norm steps: a state the outputs
+    measure directly takes its measured value, a state they do not see stays 0 (a zero start put, e.g., a
+    vehicle's unmeasured model at ``v_x = 0``, where its slip angles divide by zero).
+
+    Parameters
+    ----------
+    model : reachconf.Model
+    u : ndarray (m,)
+        The inputs at the sample.
+    y : ndarray (p,)
+        The outputs measured at the sample.
+
+    Returns
+    -------
+    ndarray (n,)
+        Finite; 0 where an iteration would leave the finite numbers.
+    """
+    U = np.asarray(u, dtype=float).reshape(1, -1)
+    y = np.asarray(y, dtype=float).reshape(-1)
+    x = np.zeros((1, model.n))
+    for _ in range(iterations):
+        R, J = evaluate_outputs(model, x, U, jacobian=True)
+        if not (np.all(np.isfinite(R)) and np.all(np.isfinite(J))):
+            break
+        step = np.linalg.lstsq(J[0], y - R[0], rcond=None)[0]
+        if not np.all(np.isfinite(step)):
+            break
+        x = x + step
+        if np.max(np.abs(step)) <= 1e-12 * (1 + np.max(np.abs(x))):
+            break
+    return np.where(np.isfinite(x[0]), x[0], 0.0)

@@ -107,3 +107,25 @@ def test_alg2_finds_the_trace_from_the_zero_disturbance_start(states):
 def test_an_initial_set_of_the_wrong_kind_is_an_options_error():
     with pytest.raises(rc.OptionsError, match="X0 must be an Interval, a Zonotope or None, got list"):
         rc.SynthesisOptions(X0=[[0, 1], [0, 1]])
+
+
+def test_alg2_starts_from_the_measured_states_not_from_zero():
+    """Audit (2 Dec): with an unmeasured state, Alg. 2 started from x = 0 — a vehicle-like model whose dynamics divide
+    by its measured speed diverged there (NaN) and found no trace; the start now takes the measured states' values."""
+    from reachconf.model.outputs import state_guess
+
+    # speed v (measured, about 10) drives a heading h (measured) through a lagged command c (not measured)
+    model = rc.Model(name="lagged_turn", states=("v", "h", "c"), inputs=("u",), disturbances=("w",),
+                     params={"tau": 0.2},
+                     dynamics=lambda s: [0.0 * s.v, (s.c + s.w) * 10.0 / s.v, (s.u - s.c) / s.tau],
+                     outputs=("v", "h"))  # fmt: skip
+    t = np.round(np.arange(0.0, 2.0 + 1e-9, 0.02), 10)
+    u = 0.3 * np.sin(3.0 * t)
+    X = rc.simulate(model, [10.0, 0.0, 0.0], t, inputs=u[:, None], disturbances=np.full((t.size - 1, 1), 0.05),
+                    substeps=8)  # fmt: skip
+    case = rc.TestCase("turn", "g", t, u[:, None], X[:, :2], ("u",), ("v", "h"))
+    guess = state_guess(model, u[:1], X[0, :2])
+    np.testing.assert_allclose(guess, [10.0, 0.0, 0.0], atol=1e-12)  # measured states read, the other one 0
+    res = rc.trace_disturbances(model, case, method="optctrl", V=rc.Interval([-1e-3, -1e-3], [1e-3, 1e-3]))
+    assert res.conformant, res.message
+    assert np.all(np.isfinite(res.W_trace)) and abs(float(np.median(res.W_trace)) - 0.05) < 0.02
