@@ -122,6 +122,8 @@ def _expm_taylor(M):
         for j in range(d):
             s += abs(M[i, j])
         norm = max(norm, s)
+    if not np.isfinite(norm):  # a diverged trace: no exponential (halving an infinite norm never ends)
+        return np.full((d, d), np.nan)
     squarings = 0
     while norm > 0.25:
         norm *= 0.5

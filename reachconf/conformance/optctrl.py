@@ -464,8 +464,9 @@ def optctrl_trace(model, t, U, Y, W_lo, W_hi, V_lo, V_hi, x0, W, options, x0_fix
     vc, vr = 0.5 * (prob.V_lo + prob.V_hi), 0.5 * (prob.V_hi - prob.V_lo)
     Vq_lo, Vq_hi = vc - reserve * vr, vc + reserve * vr
     X = prob.simulate(x0, W)
-    message = ""
-    ok = False
+    if not np.all(np.isfinite(X)):  # nothing to linearise around
+        return x0, W, f"Alg. 2: the trace simulated from the start state diverged (NaN/inf): {NO_TRACE}", False
+    message, ok = "", False
     relaxed = not (W.size and np.any(np.isfinite(W_lo) | np.isfinite(W_hi)))
     for it in range(1, options.max_iterations + 1):
         status, DX, DW, _ = prob.solve_alg2(X, W, W_lo, W_hi, Vq_lo, Vq_hi, x0_fixed=x0_fixed)

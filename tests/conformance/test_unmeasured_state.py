@@ -129,3 +129,27 @@ def test_alg2_starts_from_the_measured_states_not_from_zero():
     res = rc.trace_disturbances(model, case, method="optctrl", V=rc.Interval([-1e-3, -1e-3], [1e-3, 1e-3]))
     assert res.conformant, res.message
     assert np.all(np.isfinite(res.W_trace)) and abs(float(np.median(res.W_trace)) - 0.05) < 0.02
+
+
+def test_alg2_from_a_start_where_the_model_diverges_stops_at_once_with_a_message():
+    """Audit (2 Dec): from a start where the simulation is infinite, the linearisation's matrix exponential halved an
+    infinite norm forever (a hang); now Alg. 2 says the trace diverged, and the kernel returns NaN for such input."""
+    import time
+
+    from reachconf.conformance.windows import disturbance_trace_in_windows
+    from reachconf_kernels.tracefit import _expm_taylor
+
+    assert np.all(np.isnan(_expm_taylor(np.array([[np.inf, 0.0], [0.0, 1.0]]))))
+    model = rc.Model(name="lagged_turn_start", states=("v", "h", "c"), inputs=("u",), disturbances=("w",),
+                     params={"tau": 0.2},
+                     dynamics=lambda s: [0.0 * s.v, (s.c + s.w) * 10.0 / s.v, (s.u - s.c) / s.tau],
+                     outputs=("v", "h"))  # fmt: skip
+    t = np.round(np.arange(0.0, 1.0 + 1e-9, 0.02), 10)
+    u = 0.3 * np.sin(3.0 * t)
+    X = rc.simulate(model, [10.0, 0.0, 0.0], t, inputs=u[:, None], substeps=8)
+    inf = np.full(1, np.inf)
+    t0 = time.perf_counter()
+    _, _, info = disturbance_trace_in_windows(model, t, u[:, None], X[:, :2], None, -inf, inf, np.full(2, -1e-3),
+                                              np.full(2, 1e-3), rc.TraceOptions(), "optctrl", x0=np.zeros(3))  # fmt: skip
+    assert time.perf_counter() - t0 < 30.0
+    assert any("diverged (NaN/inf): no disturbance trace found" in m for m in info["messages"]), info["messages"]
