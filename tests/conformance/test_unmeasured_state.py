@@ -109,16 +109,21 @@ def test_an_initial_set_of_the_wrong_kind_is_an_options_error():
         rc.SynthesisOptions(X0=[[0, 1], [0, 1]])
 
 
+def _lagged_turn():
+    """Speed v (measured, about 10) drives a heading h (measured) through a lagged command c (not measured);
+    the heading's rate divides by the speed."""
+    return rc.Model(name="lagged_turn", states=("v", "h", "c"), inputs=("u",), disturbances=("w",),
+                    params={"tau": 0.2},
+                    dynamics=lambda s: [0.0 * s.v, (s.c + s.w) * 10.0 / s.v, (s.u - s.c) / s.tau],
+                    outputs=("v", "h"))  # fmt: skip
+
+
 def test_alg2_starts_from_the_measured_states_not_from_zero():
     """Audit (2 Dec): with an unmeasured state, Alg. 2 started from x = 0 — a vehicle-like model whose dynamics divide
     by its measured speed diverged there (NaN) and found no trace; the start now takes the measured states' values."""
     from reachconf.model.outputs import state_guess
 
-    # speed v (measured, about 10) drives a heading h (measured) through a lagged command c (not measured)
-    model = rc.Model(name="lagged_turn", states=("v", "h", "c"), inputs=("u",), disturbances=("w",),
-                     params={"tau": 0.2},
-                     dynamics=lambda s: [0.0 * s.v, (s.c + s.w) * 10.0 / s.v, (s.u - s.c) / s.tau],
-                     outputs=("v", "h"))  # fmt: skip
+    model = _lagged_turn()
     t = np.round(np.arange(0.0, 2.0 + 1e-9, 0.02), 10)
     u = 0.3 * np.sin(3.0 * t)
     X = rc.simulate(model, [10.0, 0.0, 0.0], t, inputs=u[:, None], disturbances=np.full((t.size - 1, 1), 0.05),
@@ -140,10 +145,7 @@ def test_alg2_from_a_start_where_the_model_diverges_stops_at_once_with_a_message
     from reachconf_kernels.tracefit import _expm_taylor
 
     assert np.all(np.isnan(_expm_taylor(np.array([[np.inf, 0.0], [0.0, 1.0]]))))
-    model = rc.Model(name="lagged_turn_start", states=("v", "h", "c"), inputs=("u",), disturbances=("w",),
-                     params={"tau": 0.2},
-                     dynamics=lambda s: [0.0 * s.v, (s.c + s.w) * 10.0 / s.v, (s.u - s.c) / s.tau],
-                     outputs=("v", "h"))  # fmt: skip
+    model = _lagged_turn()
     t = np.round(np.arange(0.0, 1.0 + 1e-9, 0.02), 10)
     u = 0.3 * np.sin(3.0 * t)
     X = rc.simulate(model, [10.0, 0.0, 0.0], t, inputs=u[:, None], substeps=8)
