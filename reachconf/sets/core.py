@@ -386,7 +386,11 @@ class Zonotope:
         if Q.ndim != 3 or Q.shape[1:] != (self.dim, self.dim):
             raise SetError(f"Q must have shape (k, {self.dim}, {self.dim}), got {Q.shape}")
         c, G = zk.quad_map(*self._cg(), Q)
-        return Zonotope.from_kernel(c, G)
+        # outward rounding: each entry sums at most n^2 + m + 2 products of |Z| and |Q_i|, s^T |Q_i| s bounds them all
+        Zm = np.abs(np.column_stack([self.center, self.generators]))
+        s = Zm.sum(axis=1)
+        err = 4.0 * (self.dim**2 + Zm.shape[1] + 4) * np.finfo(float).eps * np.einsum("i,kij,j->k", s, np.abs(Q), s)
+        return Zonotope.from_kernel(c, np.hstack([G, np.diag(err)[:, err > 0]]))
 
     def compact(self, tol: float = 0.0) -> "Zonotope":
         """The same set with parallel generators merged and generators of length <= ``tol`` dropped."""
