@@ -379,13 +379,13 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
 
     timings["how_far"] = _cpu_time() - c_start - sum(timings.values())
     # model-free check on the training cases of the first fold
-    blocks, traces, names = [], [], None
+    blocks, w_traces, names = [], [], None
     for c, tr in zip(train_base, train_traces):
         F, names = feature_dictionary(c.t, np.asarray(c.U, float), np.asarray(c.Y, float), model.input_names,
                                       model.output_names)  # fmt: skip
         blocks.append(F)
-        traces.append(tr.W_trace)
-    features = sparse_features(traces, blocks, names, channels) if names else []
+        w_traces.append(tr.W_trace)
+    features = sparse_features(w_traces, blocks, names, channels) if names else []
     bar.close()
     timings["model_free"] = _cpu_time() - c_start - sum(timings.values())
 
