@@ -192,7 +192,7 @@ def error_floor(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, err_order, err_tol
         idx[n + i] = n + m + i
     cr, Gr = reduce_adaptive(np.zeros(n), G, err_tol, err_order)
     cz, Gz = extend_with_disturbance(cr, Gr, WG, n, q, True)
-    qc, qG = quadratic_error(cz, Gz, Hp, n, idx)
+    qc, qG, _rnd = quadratic_error(cz, Gz, Hp, n, idx)  # an estimate for the step control: no rounding box
     return abs_bound(qc, qG) + out, 0
 
 

@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, types
 
+from reachconf_kernels import quadmap as QM
 from reachconf_kernels import zonotope as Z
 from reachconf_kernels.reduce_adaptive import reduce_adaptive
 from reachconf_kernels.small_linalg import mat_mat, mat_vec
@@ -145,14 +146,15 @@ def _all_finite(a):
 
 @njit(cache=True)
 def quadratic_error(cz, Gz, Hp, n, idx):
-    """``1/2 quad_map(Z, H(p))`` restricted to the coordinates ``idx`` of z."""
+    """``1/2 quad_map(Z, H(p))`` restricted to the coordinates ``idx`` of z, and the radius of its rounding."""
     k = idx.shape[0]
     Q = np.empty((n, k, k))
     for i in range(n):
         for a in range(k):
             for b in range(k):
                 Q[i, a, b] = 0.5 * Hp[i, idx[a], idx[b]]
-    return Z.quad_map(cz, Gz, Q)
+    qc, qG = QM.quad_map(cz, Gz, Q)
+    return qc, qG, QM.quad_map_rounding(cz, Gz, cz, Gz, Q)
 
 
 @njit(cache=True)
@@ -160,7 +162,8 @@ def _quad_maps_poly(cs, Gs, cd, Gd, Hp, n, idx):
     """Dynamic quadratic error of 'poly': ``1/2 [q(s, d) + q(d, s) + q(d, d)]``.
 
     ``s`` ranges over the start set (deviation coordinates, disturbance part
-    zero) and ``d`` over the increment set (with the disturbance part).
+    zero) and ``d`` over the increment set (with the disturbance part).  Returns the centre, the generators
+    and the radius of their rounding (the three maps' bounds, and a quarter more for summing them).
     """
     k = idx.shape[0]
     Q = np.empty((n, k, k))
@@ -168,10 +171,12 @@ def _quad_maps_poly(cs, Gs, cd, Gd, Hp, n, idx):
         for a in range(k):
             for b in range(k):
                 Q[i, a, b] = 0.5 * Hp[i, idx[a], idx[b]]
-    c1, G1 = Z.quad_map_mixed(cs, Gs, cd, Gd, Q)
-    c2, G2 = Z.quad_map_mixed(cd, Gd, cs, Gs, Q)
-    c3, G3 = Z.quad_map(cd, Gd, Q)
-    return c1 + c2 + c3, _hcat(_hcat(G1, G2), G3)
+    c1, G1 = QM.quad_map_mixed(cs, Gs, cd, Gd, Q)
+    c2, G2 = QM.quad_map_mixed(cd, Gd, cs, Gs, Q)
+    c3, G3 = QM.quad_map(cd, Gd, Q)
+    rnd = QM.quad_map_rounding(cs, Gs, cd, Gd, Q) + QM.quad_map_rounding(cd, Gd, cs, Gs, Q)
+    rnd = 1.25 * (rnd + QM.quad_map_rounding(cd, Gd, cd, Gd, Q))
+    return c1 + c2 + c3, _hcat(_hcat(G1, G2), G3), rnd
 
 
 @njit(cache=True)
@@ -266,6 +271,7 @@ def nonlinear_step(
     stat_c = np.zeros(n)
     stat_G = np.zeros((n, 0))
     stat_abs = np.zeros(n)
+    stat_rnd = np.zeros(n)  # rounding radius of the static quadratic term
     cdiff = np.zeros(n)
     Gdiff = np.zeros((n, 0))
     idx = np.empty(n + q, dtype=np.int64)
@@ -279,9 +285,9 @@ def nonlinear_step(
     if algorithm == 1:
         c_s, G_s = _reduce(cd, G, err_order, reduce_method)
         cs, Gs = extend_with_disturbance(c_s, G_s, WG, n, q, False)
-        stat_c, stat_G = quadratic_error(cs, Gs, Hp, n, idx)
+        stat_c, stat_G, stat_rnd = quadratic_error(cs, Gs, Hp, n, idx)
         stat_c, stat_G = _reduce(stat_c, stat_G, inter_order, reduce_method)
-        stat_abs = abs_bound(stat_c, stat_G)
+        stat_abs = abs_bound(stat_c, stat_G) + stat_rnd
         # increments x(t) - x(t_k) of the linear part
         D_c, D_G, D_rad = interval_matrix_times_zonotope(eAt - np.eye(n), E, cd, G)
         D_c, D_G = _add_box(D_c + Pu_c, D_G, D_rad + Pu_rad)
@@ -322,6 +328,7 @@ def nonlinear_step(
     err_c = np.zeros(n)
     err_G = np.zeros((n, 0))
     term_q = np.zeros(n)
+    q_rnd = np.zeros(n)  # rounding radius of the quadratic term
     cubic = np.zeros(n)
     true_err = np.zeros(n)
     status = NO_CONVERGENCE
@@ -361,15 +368,15 @@ def nonlinear_step(
                 c_d, G_d = _add_box(cdiff, Gdiff, rad_v)
                 c_d, G_d = _reduce(c_d, G_d, err_order, reduce_method)
                 czd, Gzd = extend_with_disturbance(c_d, G_d, WG, n, q, True)
-                qc, qG = _quad_maps_poly(cs, Gs, czd, Gzd, Hp, n, idx)
+                qc, qG, q_rnd = _quad_maps_poly(cs, Gs, czd, Gzd, Hp, n, idx)
             else:
                 c_r, G_r = _add_box(cti_lin, Gti_lin, rad_v)
                 c_r, G_r = _reduce(c_r, G_r, err_order, reduce_method)
                 info[1] = G_r.shape[1]
                 czr, Gzr = extend_with_disturbance(c_r, G_r, WG, n, q, True)
-                qc, qG = quadratic_error(czr, Gzr, Hp, n, idx)
+                qc, qG, q_rnd = quadratic_error(czr, Gzr, Hp, n, idx)
             err_c, err_G = _reduce(qc, qG, inter_order, reduce_method)
-            term_q = abs_bound(err_c, err_G)
+            term_q = abs_bound(err_c, err_G) + q_rnd
             true_err = term_q + cubic + stat_abs
         if not _all_finite(true_err):
             status = NOT_FINITE
@@ -401,7 +408,7 @@ def nonlinear_step(
     if tensor_order == 2:
         ec, eG = _add_box(np.zeros(n), np.zeros((n, 0)), true_err)
     else:
-        ec, eG = _add_box(err_c + stat_c, _hcat(err_G, stat_G), cubic)
+        ec, eG = _add_box(err_c + stat_c, _hcat(err_G, stat_G), cubic + q_rnd + stat_rnd)
     # adaptive (red_tol > 0): the generators of the error's particular solution beyond the first Taylor term are boxed
     # at once (with tensor order 3 the error set has up to intermediate_order * n generators, so each term adds as many; the
     # higher terms' images are O(dt^2) and the error-bounded reduction below would box them anyway, after sorting them)

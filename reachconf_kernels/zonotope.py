@@ -1,8 +1,9 @@
 """Zonotope kernels: ``Z = {c + G b | b in [-1, 1]^m}`` with ``c`` (n,) and ``G`` (n, m).
 
 Pure numba functions on float64 arrays.  Operations that are exact in real
-arithmetic (linear map, Minkowski sum, Cartesian product, enclose,
-``quad_map``) are computed in floating point; operations that create boxes
+arithmetic (linear map, Minkowski sum, Cartesian product, enclose) are
+computed in floating point (``quad_map`` and its rounding bound:
+:mod:`reachconf_kernels.quadmap`); operations that create boxes
 (interval hull, order reduction, from_interval) round the box outward so the
 result always contains the input.  The reachability kernels add a small
 relative allowance per step for the rounding of the float operations.
@@ -15,7 +16,6 @@ import math
 import numpy as np
 from numba import njit
 
-from reachconf_kernels.small_linalg import mat_mat
 
 _EPS = 2.220446049250313e-16
 
@@ -283,79 +283,6 @@ def enclose(c1, G1, c2, G2):
         out[i, m2] = 0.5 * (c1[i] - c2[i])
     out[:, 2 * m2 + 1 :] = G1[:, m2:]
     return 0.5 * (c1 + c2), out
-
-
-@njit(cache=True)
-def _is_zero(Q, i):
-    for a in range(Q.shape[1]):
-        for b in range(Q.shape[2]):
-            if Q[i, a, b] != 0.0:
-                return False
-    return True
-
-
-@njit(cache=True)
-def _bilinear(Q, i, Z1, Z2):
-    """``Z1.T @ Q[i] @ Z2`` with plain loops."""
-    return mat_mat(Z1.T, mat_mat(Q[i], Z2))
-
-
-@njit(cache=True)
-def quad_map(c, G, Q):
-    """Enclosure of ``{(x^T Q_i x)_i | x in Z}``; Q has shape (k, n, n) (CORA's quadMap)."""
-    n = c.shape[0]
-    m = G.shape[1]
-    k = Q.shape[0]
-    Zm = np.empty((n, m + 1))
-    Zm[:, 0] = c
-    Zm[:, 1:] = G
-    ng = m + (m + 1) * m // 2
-    cout = np.zeros(k)
-    Gout = np.zeros((k, ng))
-    for i in range(k):
-        if _is_zero(Q, i):
-            continue
-        Qh = _bilinear(Q, i, Zm, Zm)
-        cout[i] = Qh[0, 0]
-        for j in range(1, m + 1):
-            cout[i] += 0.5 * Qh[j, j]
-            Gout[i, j - 1] = 0.5 * Qh[j, j]
-        col = m
-        for a in range(m + 1):
-            for b in range(a + 1, m + 1):
-                Gout[i, col] = Qh[a, b] + Qh[b, a]
-                col += 1
-    return cout, Gout
-
-
-@njit(cache=True)
-def quad_map_mixed(c1, G1, c2, G2, Q):
-    """Enclosure of ``{(x^T Q_i y)_i | x in Z1, y in Z2}``."""
-    n = c1.shape[0]
-    m1 = G1.shape[1]
-    m2 = G2.shape[1]
-    k = Q.shape[0]
-    Z1 = np.empty((n, m1 + 1))
-    Z1[:, 0] = c1
-    Z1[:, 1:] = G1
-    Z2 = np.empty((n, m2 + 1))
-    Z2[:, 0] = c2
-    Z2[:, 1:] = G2
-    cout = np.zeros(k)
-    Gout = np.zeros((k, (m1 + 1) * (m2 + 1) - 1))
-    for i in range(k):
-        if _is_zero(Q, i):
-            continue
-        Qh = _bilinear(Q, i, Z1, Z2)
-        cout[i] = Qh[0, 0]
-        col = 0
-        for a in range(m1 + 1):
-            for b in range(m2 + 1):
-                if a == 0 and b == 0:
-                    continue
-                Gout[i, col] = Qh[a, b]
-                col += 1
-    return cout, Gout
 
 
 @njit(cache=True)

@@ -192,7 +192,10 @@ def test_reach_taylor_matches_tensor_on_van_der_pol():
              for r in ("taylor", "tensor")]  # fmt: skip
     a, b = (t.bounds()[-1] for t in tubes)
     width_a, width_b = a[1] - a[0], b[1] - b[0]
-    assert np.all(width_a <= width_b * (1 + 1e-9)) and np.all(width_a >= 0.999 * width_b)
+    # the two bounds agree to ~1e-14 per step, but a last-bits difference flips a discrete choice of the step at
+    # t = 0.62 s, which moves the final widths by up to 5e-5 either way (measured 2 Dec: the quadratic term's
+    # rounding box, a few ulps, swapped which path came out 1.3e-5 wider)
+    assert np.all(width_a <= width_b * (1 + 1e-4)) and np.all(width_a >= 0.999 * width_b)
 
 
 def _bound(tape, lo, hi, K=2):

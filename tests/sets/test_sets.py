@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 import reachconf
 from reachconf import Interval, SetError, Zonotope
 from reachconf.sets import contains_points_lp
-import reachconf_kernels.zonotope as zk
+import reachconf_kernels.quadmap as qk
 
 TOL = 1e-9
 
@@ -93,7 +93,7 @@ def test_quad_map_is_sound(seed, n, m, k):
     images = np.einsum("pi,kij,pj->pk", P, Q, P)
     assert R.contains(images, tol=TOL).all()
     # tight: the rounding box adds only ulps to the kernel's enclosure (CORA's quadMap)
-    c, G = zk.quad_map(*Z._cg(), Q)
+    c, G = qk.quad_map(*Z._cg(), Q)
     s = np.abs(np.column_stack([Z.center, Z.generators])).sum(axis=1)
     scale = np.einsum("i,kij,j->k", s, np.abs(Q), s)
     assert np.all(R.interval().hi - (c + np.abs(G).sum(axis=1)) <= 1e-12 * (scale + 1.0))
