@@ -4,7 +4,8 @@
                                    [--steering rate_limited]
 
 0. the campaign: 4 maneuvers x 2 lateral accelerations x 5 repetitions from the
-   multi-body plant (``reachconf.datasets.vehicle_campaign``), saved to DIR/campaign and reused;
+   multi-body plant (``reachconf.datasets.vehicle_campaign``, the runs simulated on the workers),
+   saved to DIR/campaign and reused;
 1. identification of the nominal bicycle parameters (J/m, b/L, c_f, c_r) by
    least squares (equation error on smoothed state derivatives);
 2. trace conformance: f_B with measured inputs (Table 3) and f_BX with
@@ -216,7 +217,7 @@ def markdown(result) -> str:
 
 
 def campaign(folder, progress=True, quick=False, **kw):
-    """Load the campaign from ``folder`` or generate and save it there."""
+    """Load the campaign from ``folder`` or generate and save it there (``pool=``: simulated on its workers)."""
     if (folder / "suite.toml").exists():
         return load_suite(folder)
     if quick:
@@ -254,22 +255,26 @@ def main(argv=None):
 
     t0 = time.perf_counter()
     tag = "_quick" if args.quick else ""
-    suite = campaign(out / f"campaign{tag}", quick=args.quick, repetitions=5)
-    # Table 8's campaigns: no actuator effects, no noise; feed-forward only and closed loop
-    plain = {label: campaign(out / f"campaign_no_effects_{label}{tag}", quick=args.quick, effects=NO_EFFECTS,
-                             repetitions=1, feedforward_only=ff)
-             for label, ff in (("open_loop", True), ("closed_loop", False))}  # fmt: skip
-    timings["campaign"] = time.perf_counter() - t0
-    print(f"campaign: {len(suite)} cases, groups {list(suite.groups())} ({timings['campaign']:.1f} s)", flush=True)
-    t_after = time.perf_counter()
     pool = Pool(args.workers, args.scheduler)  # the run's one pool: every parallel step submits its tasks to it
     result = {}
+    t_after = None
     try:
+        suite = campaign(out / f"campaign{tag}", quick=args.quick, repetitions=5, pool=pool)
+        # Table 8's campaigns: no actuator effects, no noise; feed-forward only and closed loop
+        plain = {label: campaign(out / f"campaign_no_effects_{label}{tag}", quick=args.quick, effects=NO_EFFECTS,
+                                 repetitions=1, feedforward_only=ff, pool=pool)
+                 for label, ff in (("open_loop", True), ("closed_loop", False))}  # fmt: skip
+        timings["campaign"] = time.perf_counter() - t0
+        print(f"campaign: {len(suite)} cases, groups {list(suite.groups())} ({timings['campaign']:.1f} s)", flush=True)
+        t_after = time.perf_counter()
         _run(args, out, suite, plain, pool, timings, result)
     except (KeyboardInterrupt, WorkersLost) as exc:
         # Ctrl-C or no worker left: keep what is finished (the steps' results so far) and say so
         if isinstance(exc, WorkersLost):
             print(f"stopped: {exc}", file=sys.stderr)
+        if t_after is None:  # still generating: the campaigns finished so far are saved, and reused next time
+            print("interrupted while generating the campaigns (those finished are saved in OUT)", file=sys.stderr)
+            return 130
         timings["after_campaign"] = time.perf_counter() - t_after
         result.update(timings=timings, interrupted=True)
         atomic_write(out / "vehicle.json", json.dumps(result, indent=2, default=float))

@@ -44,3 +44,18 @@ def test_effects_switch_off():
     assert d_err.max() > 1e-3  # the steering lag shows between request and realised angle
     with pytest.raises(ValueError, match="unknown effect"):
         PlantEffects().without("gremlins")
+
+
+def test_campaign_on_a_pool_is_the_serial_campaign():
+    from reachconf.datasets.vehicle_campaign import make_campaign
+    from reachconf.runner import Pool
+
+    kw = dict(maneuvers=("LC",), accelerations=(2.0,), repetitions=2, seed=5, progress=False)
+    serial = make_campaign(**kw)
+    with Pool(2) as pool:
+        pooled = make_campaign(pool=pool, **kw)
+    assert [c.name for c in pooled] == [c.name for c in serial] == ["LC_2_1", "LC_2_2"]
+    for a, b in zip(serial, pooled):
+        np.testing.assert_array_equal(a.Y, b.Y)
+        np.testing.assert_array_equal(a.U, b.U)
+        assert a.extras.keys() == b.extras.keys()

@@ -39,12 +39,24 @@ def make_case(kind, a_lat, rep, effects=PlantEffects(), seed=0, v=10.0, feedforw
     return TestCase.from_signals(name or f"{group}_{rep + 1}", out["t"], signals, ("ax", "delta"), _OUTPUTS, group=group)
 
 
+def _case_job(job):
+    """:func:`make_case` of one ``(kind, a_lat, rep, effects, seed, feedforward_only)`` job (a pool task)."""
+    kind, a_lat, rep, effects, seed, feedforward_only = job
+    return make_case(kind, a_lat, rep, effects, seed, feedforward_only=feedforward_only)
+
+
 def make_campaign(folder=None, effects=PlantEffects(), seed=0, repetitions=5, maneuvers=CAMPAIGN_MANEUVERS,
-                  accelerations=CAMPAIGN_ACCELERATIONS, feedforward_only=False, progress=True):  # fmt: skip
-    """Generate the campaign suite (40 cases by default); save it to ``folder`` if given."""
-    jobs = [(k, a, r) for k in maneuvers for a in accelerations for r in range(repetitions)]
-    cases = [make_case(k, a, r, effects, seed, feedforward_only=feedforward_only)
-             for k, a, r in tqdm(jobs, desc="campaign", disable=not progress, leave=False)]  # fmt: skip
+                  accelerations=CAMPAIGN_ACCELERATIONS, feedforward_only=False, progress=True, pool=None):  # fmt: skip
+    """Generate the campaign suite (40 cases by default); save it to ``folder`` if given.
+
+    ``pool`` (a :class:`reachconf.runner.Pool`) simulates the runs on its workers; every run has its own seed, so the
+    suite is the same with or without it.
+    """
+    jobs = [(k, a, r, effects, seed, feedforward_only) for k in maneuvers for a in accelerations for r in range(repetitions)]
+    if pool is not None and pool.parallel:
+        cases = pool.map(_case_job, jobs, desc="campaign", progress=progress)
+    else:
+        cases = [_case_job(job) for job in tqdm(jobs, desc="campaign", disable=not progress, leave=False)]
     suite = TestSuite(cases, name="vehicle campaign")
     if folder is not None:
         save_suite(suite, folder)
