@@ -9,6 +9,7 @@ front (:mod:`reachconf.conformance.pareto`), with the check of
 from __future__ import annotations
 
 from reachconf.conformance.reachset import reachset_conformance
+from reachconf.errors import OptionsError
 from reachconf.sets.core import Interval
 from reachconf.verdict import Verdict
 
@@ -63,7 +64,7 @@ def _outcome(result) -> tuple[bool, bool]:
 
 
 def reachset_check(model, case, W, V, options):
-    """The reachset-conformance check of the α-searches: eq. 43 from the initial set of eq. 67.
+    """The reachset-conformance check of the α-searches: eq. 43 from ``options.X0`` (per case) or eq. 67.
 
     Stops at the first violation; when the reach with ``options.reach``
     fails (the set explodes), tries ``options.reach_fallback`` if given.
@@ -79,9 +80,21 @@ def reachset_check(model, case, W, V, options):
     -------
     ReachsetResult
     """
-    res = reachset_conformance(model, case, W, V, X0=options.X0, options=options.reach, keep_tube=False,
+    X0 = case_initial_set(options, case)
+    res = reachset_conformance(model, case, W, V, X0=X0, options=options.reach, keep_tube=False,
                                violation_distance=False, stop_at_first_violation=True)  # fmt: skip
     if res.verdict is Verdict.UNDECIDED and options.reach_fallback is not None:  # the reach failed: the precise one
-        res = reachset_conformance(model, case, W, V, X0=options.X0, options=options.reach_fallback, keep_tube=False,
+        res = reachset_conformance(model, case, W, V, X0=X0, options=options.reach_fallback, keep_tube=False,
                                    violation_distance=False, stop_at_first_violation=True)  # fmt: skip
     return res
+
+
+def case_initial_set(options, case):
+    """``options.X0`` for ``case``: the one set, the case's entry of a per-case mapping, or None (eq. 67)."""
+    X0 = options.X0
+    if isinstance(X0, dict):
+        if case.name not in X0:
+            raise OptionsError(f"SynthesisOptions.X0 has no initial set for case {case.name!r} (a mapping needs "
+                               f"every case checked)")  # fmt: skip
+        return X0[case.name]
+    return X0

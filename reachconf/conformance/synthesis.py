@@ -16,6 +16,7 @@ over all of its cases, giving ``W_RC,Mnvr`` (Table 6).
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -84,12 +85,14 @@ class SynthesisOptions:
         else Alg. 2's (noisy measurements at a high rate make the per-step
         trace drift out of V; step 2 then starts from a trace within V).
         A model whose states cannot be read from its outputs goes to Alg. 2 at once.
-    X0 : Interval, Zonotope or None
+    X0 : Interval, Zonotope, mapping or None
         Initial set of every case's reach in the α-searches (step 3, the
-        merge, the Pareto checks); None: eq. 67, the states read from each
-        case's first measurement and V — which needs outputs from which the
-        states can be read: give X0 for a model with an unmeasured state
-        (``[sets] X0`` of a run file).
+        merge, the Pareto checks); a mapping ``{case name: Interval or
+        Zonotope}`` gives each case its own (every case of the suite must have
+        one: a model with an unmeasured state whose start differs per run);
+        None: eq. 67, the states read from each case's first measurement and
+        V — which needs outputs from which the states can be read: give X0
+        for a model with an unmeasured state (``[sets] X0`` of a run file).
     """
 
     alpha_iterations: int = 10
@@ -106,8 +109,15 @@ class SynthesisOptions:
 
     def __post_init__(self):
         check_field_types(self)
-        if self.X0 is not None and not isinstance(self.X0, (Interval, Zonotope)):
-            raise OptionsError(f"X0 must be an Interval, a Zonotope or None, got {type(self.X0).__name__}")
+        if isinstance(self.X0, Mapping):
+            for name, X in self.X0.items():
+                if not isinstance(name, str) or not isinstance(X, (Interval, Zonotope)):
+                    raise OptionsError(f"X0 as a mapping takes case names to an Interval or a Zonotope, got "
+                                       f"{name!r}: {type(X).__name__}")  # fmt: skip
+            object.__setattr__(self, "X0", dict(self.X0))  # a copy: later changes to the caller's dict do not leak in
+        elif self.X0 is not None and not isinstance(self.X0, (Interval, Zonotope)):
+            raise OptionsError(f"X0 must be an Interval, a Zonotope, a mapping of case names to them or None, got "
+                               f"{type(self.X0).__name__}")  # fmt: skip
         if self.step1_method not in ("auto", "perstep", "optctrl"):
             raise OptionsError(f"step1_method must be 'auto', 'perstep' or 'optctrl', got {self.step1_method!r}")
         if int(self.alpha_iterations) != self.alpha_iterations or self.alpha_iterations < 1:
@@ -406,6 +416,11 @@ def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, worke
     options = check_options(options, SynthesisOptions, "synthesize_W")
     workers = check_workers(workers, "synthesize_W: workers")
     cases = suite_cases(suite, "synthesize_W")
+    if isinstance(options.X0, dict):
+        missing = [c.name for c in cases if c.name not in options.X0]
+        if missing:
+            raise OptionsError(f"synthesize_W: SynthesisOptions.X0 has no initial set for case(s) {missing[:5]}"
+                               f"{' ...' if len(missing) > 5 else ''} (a mapping needs every case of the suite)")
     t_all = time.perf_counter()
     Vb = as_box(V, model.p, "V", exact=True)
     Vbox = Interval(Vb.lo, Vb.hi)

@@ -36,6 +36,41 @@ def test_synthesis_uses_the_given_initial_set(problem):
     assert all(c.message == "" or "alpha" in c.message for c in res.cases.values())
 
 
+def test_each_case_can_have_its_own_initial_set(problem):
+    """Runs whose unmeasured velocity starts differently: one X0 per case (a mapping) is conformant with the offset's
+    W; the one X0 of the first run's start is not, for the same W; a mapping without every case is refused."""
+    model, suite, V, X0 = problem
+    t = suite.cases[0].t
+    starts = (0.0, 1.5, -1.5, 0.8)
+    cases = []
+    for j, v0 in enumerate(starts):
+        rng = np.random.default_rng(70 + j)
+        u = np.sin(2 * np.pi * rng.uniform(0.3, 1.0) * t + rng.uniform(0, 6))
+        X = rc.simulate(model, [0.0, v0], t, inputs=(u + 0.4)[:, None], substeps=8)
+        Y = X[:, :1] + rng.uniform(-0.002, 0.002, size=(t.size, 1))
+        cases.append(rc.TestCase(f"s{j}", "g", t, u[:, None], Y, ("u",), ("p",)))
+    moved = rc.TestSuite(cases)
+    per_case = {f"s{j}": rc.Interval([-0.01, v0 - 0.05], [0.01, v0 + 0.05]) for j, v0 in enumerate(starts)}
+    opts = rc.SynthesisOptions(X0=per_case, alpha_iterations=4)
+    res = rc.synthesize_W(model, moved, V, opts, progress=False)
+    assert res.group_conformant["g"], res.table()
+    W = res.groups["g"]
+    assert W.lo[0] <= 0.4 <= W.hi[0] + 0.05 and W.hi[0] - W.lo[0] < 1.0
+    # the same W from the first run's start only: the runs that start moving leave the reach
+    from reachconf.conformance import reachset_check
+
+    one = rc.SynthesisOptions(X0=per_case["s0"])
+    verdicts = [reachset_check(model, c, W, V, one).conformant for c in moved]
+    assert verdicts[0] and not all(verdicts[1:])
+    per_case["s1"] = X0  # changing the caller's dict later does not change the options
+    assert opts.X0["s1"].lo[1] == pytest.approx(1.45)
+    with pytest.raises(rc.OptionsError, match=r"no initial set for case\(s\) \['s3'\]"):
+        rc.synthesize_W(model, moved, V, rc.SynthesisOptions(X0={k: per_case[k] for k in ("s0", "s1", "s2")}),
+                        progress=False)  # fmt: skip
+    with pytest.raises(rc.OptionsError, match="case names to an Interval or a Zonotope"):
+        rc.SynthesisOptions(X0={"s0": [0.0, 1.0]})
+
+
 def test_without_an_initial_set_the_error_says_where_to_give_it(problem):
     model, suite, V, _ = problem
     with pytest.raises(rc.ConformanceError, match=r"SynthesisOptions\(X0=...\)"):
@@ -105,7 +140,7 @@ def test_alg2_finds_the_trace_from_the_zero_disturbance_start(states):
 
 
 def test_an_initial_set_of_the_wrong_kind_is_an_options_error():
-    with pytest.raises(rc.OptionsError, match="X0 must be an Interval, a Zonotope or None, got list"):
+    with pytest.raises(rc.OptionsError, match="X0 must be an Interval, a Zonotope, a mapping .* or None, got list"):
         rc.SynthesisOptions(X0=[[0, 1], [0, 1]])
 
 
