@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -15,7 +16,8 @@ from reachconf.io.cases import case_arrays
 from reachconf.io.results import JsonResult
 from reachconf.plot import plot_measured
 from reachconf.model.core import require_model
-from reachconf.model.outputs import affine_output, output_enclosure, output_index_of_states, state_estimate
+from reachconf.model.outputs import (affine_output, output_enclosure, output_index_of_states, outputs_of_states,
+                                     state_estimate)
 from reachconf.reach import ReachStopped, integration_steps, reach_run
 from reachconf.reach_options import AdaptiveReach, ReachOptions
 from reachconf.reach_stream import streamed_bytes_per_step
@@ -150,16 +152,34 @@ class ReachsetResult(JsonResult):
         return ax
 
 
-def initial_set(model, case, V) -> Interval | Zonotope:
+def initial_set(model, case, V, unmeasured=None) -> Interval | Zonotope:
     """Eq. 67: ``X(t_1) ⊕ V`` in state space.
 
     If every state is an output, the measured first sample plus V.  If ``h``
     is affine with full column rank ``C``, the preimage
-    ``C^+ (y_1 - D u_1 - e - V)``.  Otherwise pass ``X0`` explicitly.
+    ``C^+ (y_1 - D u_1 - e - V)``.  Otherwise pass ``X0`` explicitly, or
+    ``unmeasured``.
+
+    Parameters
+    ----------
+    model : Model
+    case : TestCase
+    V : Interval or array-like of (lo, hi)
+    unmeasured : mapping of state name to (lo, hi), optional
+        Bounds of the states that are not outputs (e.g. a box around the start
+        of the case's disturbance trace, ``TraceResult.x0``); the states that
+        are outputs take eq. 67's first sample plus V.  Every state that is not
+        an output must be given, and only those.
+
+    Returns
+    -------
+    Interval or Zonotope
     """
     t, U, Y = case_arrays(model, case)
     Vb = as_box(V, model.p, "V")
     V_lo, V_hi = Vb.lo, Vb.hi
+    if unmeasured is not None:
+        return _partly_measured(model, Y[0], V_lo, V_hi, unmeasured)
     direct = output_index_of_states(model)
     if direct is not None:
         x1 = Y[0, direct]
@@ -173,8 +193,37 @@ def initial_set(model, case, V) -> Interval | Zonotope:
         return Zonotope(x1 - Cp @ Vc, -Cp * Vr)
     raise ConformanceError(
         f"model {model.name!r}: eq. 67 needs the states from the outputs (h not invertible); give the initial set "
-        f"X0 (reachset_conformance(X0=...), SynthesisOptions(X0=...), or [sets] X0 in a run file)"
+        f"X0 (reachset_conformance(X0=...), SynthesisOptions(X0=...), or [sets] X0 in a run file), or the bounds of "
+        f"the unmeasured states (initial_set(..., unmeasured={{name: (lo, hi)}}))"
     )
+
+
+def _partly_measured(model, y1, V_lo, V_hi, unmeasured) -> Interval:
+    """Eq. 67 for the states that are outputs, the given bounds for the others."""
+    if not isinstance(unmeasured, Mapping):
+        raise OptionsError(f"unmeasured must map state names to (lo, hi), got {type(unmeasured).__name__}")
+    measured = {model.state_names[j]: i for j, i in outputs_of_states(model).items()}
+    unknown = sorted(set(unmeasured) - set(model.state_names))
+    if unknown:
+        raise OptionsError(f"unmeasured: {unknown} are not states of model {model.name!r} ({model.state_names})")
+    wrong = sorted(set(unmeasured) & set(measured))
+    missing = [x for x in model.state_names if x not in measured and x not in unmeasured]
+    if wrong or missing:
+        raise OptionsError(f"unmeasured must give exactly the states that are not outputs of model {model.name!r}: "
+                           f"{'outputs given: ' + str(wrong) if wrong else 'missing: ' + str(missing)}")  # fmt: skip
+    lo, hi = np.empty(model.n), np.empty(model.n)
+    for j, name in enumerate(model.state_names):
+        if name in measured:
+            i = measured[name]
+            lo[j], hi[j] = y1[i] + V_lo[i], y1[i] + V_hi[i]
+            continue
+        try:
+            lo[j], hi[j] = (float(v) for v in unmeasured[name])
+        except (TypeError, ValueError):
+            raise OptionsError(f"unmeasured[{name!r}] must be a pair (lo, hi), got {unmeasured[name]!r}") from None
+        if not (np.isfinite(lo[j]) and np.isfinite(hi[j]) and lo[j] <= hi[j]):
+            raise OptionsError(f"unmeasured[{name!r}] must be finite with lo <= hi, got {unmeasured[name]!r}")
+    return Interval(lo, hi)
 
 
 def _distance(S, y: np.ndarray) -> float:

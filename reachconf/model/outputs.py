@@ -26,7 +26,7 @@ from reachconf_kernels.integrate import eval_outputs
 from reachconf_kernels.linsys import interval_matrix_times_zonotope
 
 __all__ = ["output_enclosure", "affine_output", "evaluate_outputs", "state_estimate", "output_index_of_states",
-           "state_index_of_outputs", "state_guess"]  # fmt: skip
+           "outputs_of_states", "state_index_of_outputs", "state_guess"]  # fmt: skip
 
 
 def affine_output(model):
@@ -163,13 +163,18 @@ def output_index_of_states(model):
     -------
     list of int (n,) or None
     """
-    idx = []
-    for s in model.z_symbols[: model.n]:
+    direct = outputs_of_states(model)
+    return [direct[j] for j in range(model.n)] if len(direct) == model.n else None
+
+
+def outputs_of_states(model) -> dict:
+    """``{state index: output index}`` of the states that are an output directly (``y_i = x_j``; the first such)."""
+    out = {}
+    for j, s in enumerate(model.z_symbols[: model.n]):
         hit = [i for i, e in enumerate(model.h_expr) if isinstance(e, sp.Symbol) and e == s]
-        if not hit:
-            return None
-        idx.append(hit[0])
-    return idx
+        if hit:
+            out[j] = hit[0]
+    return out
 
 
 def state_index_of_outputs(model):

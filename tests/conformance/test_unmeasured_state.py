@@ -71,6 +71,28 @@ def test_each_case_can_have_its_own_initial_set(problem):
         rc.SynthesisOptions(X0={"s0": [0.0, 1.0]})
 
 
+def test_eq67_for_the_measured_states_and_bounds_for_the_others(problem):
+    from reachconf.conformance import initial_set
+
+    model, suite, V, _ = problem
+    case = suite.cases[1]
+    X = initial_set(model, case, V, unmeasured={"v": (-0.2, 0.3)})
+    p1 = case.Y[0, 0]
+    np.testing.assert_allclose(X.lo, [p1 - 0.005, -0.2])
+    np.testing.assert_allclose(X.hi, [p1 + 0.005, 0.3])
+    # one X0 per case from it: the trace's start for the unmeasured velocity would go here
+    per_case = {c.name: initial_set(model, c, V, unmeasured={"v": (-0.05, 0.05)}) for c in suite}
+    res = rc.synthesize_W(model, suite, V, rc.SynthesisOptions(X0=per_case, alpha_iterations=3), progress=False)
+    assert all(res.group_conformant.values()), res.table()
+    for bad, match in (({}, r"missing: \['v'\]"), ({"v": (0, 1), "p": (0, 1)}, r"outputs given: \['p'\]"),
+                       ({"v": (0, 1), "q": (0, 1)}, r"\['q'\] are not states"), ({"v": 1.0}, "must be a pair"),
+                       ({"v": (1.0, 0.0)}, "lo <= hi"), ([("v", (0, 1))], "must map state names")):  # fmt: skip
+        with pytest.raises(rc.OptionsError, match=match):
+            initial_set(model, case, V, unmeasured=bad)
+    with pytest.raises(rc.ConformanceError, match=r"unmeasured=\{name: \(lo, hi\)\}"):
+        initial_set(model, case, V)
+
+
 def test_without_an_initial_set_the_error_says_where_to_give_it(problem):
     model, suite, V, _ = problem
     with pytest.raises(rc.ConformanceError, match=r"SynthesisOptions\(X0=...\)"):
