@@ -145,14 +145,21 @@ def _all_finite(a):
 
 
 @njit(cache=True)
-def quadratic_error(cz, Gz, Hp, n, idx):
-    """``1/2 quad_map(Z, H(p))`` restricted to the coordinates ``idx`` of z, and the radius of its rounding."""
+def _half_hessian(Hp, n, idx):
+    """``1/2 H(p)`` of the ``n`` states restricted to the coordinates ``idx`` of z (states and disturbances)."""
     k = idx.shape[0]
     Q = np.empty((n, k, k))
     for i in range(n):
         for a in range(k):
             for b in range(k):
                 Q[i, a, b] = 0.5 * Hp[i, idx[a], idx[b]]
+    return Q
+
+
+@njit(cache=True)
+def quadratic_error(cz, Gz, Hp, n, idx):
+    """``1/2 quad_map(Z, H(p))`` restricted to the coordinates ``idx`` of z, and the radius of its rounding."""
+    Q = _half_hessian(Hp, n, idx)
     qc, qG = QM.quad_map(cz, Gz, Q)
     return qc, qG, QM.quad_map_rounding(cz, Gz, cz, Gz, Q)
 
@@ -165,12 +172,7 @@ def _quad_maps_poly(cs, Gs, cd, Gd, Hp, n, idx):
     zero) and ``d`` over the increment set (with the disturbance part).  Returns the centre, the generators
     and the radius of their rounding (the three maps' bounds, and a quarter more for summing them).
     """
-    k = idx.shape[0]
-    Q = np.empty((n, k, k))
-    for i in range(n):
-        for a in range(k):
-            for b in range(k):
-                Q[i, a, b] = 0.5 * Hp[i, idx[a], idx[b]]
+    Q = _half_hessian(Hp, n, idx)
     c1, G1 = QM.quad_map_mixed(cs, Gs, cd, Gd, Q)
     c2, G2 = QM.quad_map_mixed(cd, Gd, cs, Gs, Q)
     c3, G3 = QM.quad_map(cd, Gd, Q)

@@ -26,6 +26,15 @@ def _is_zero(Q, i):
 
 
 @njit(cache=True)
+def _stacked(c, G):
+    """``[c, G]`` as one (n, m + 1) matrix."""
+    Zm = np.empty((c.shape[0], G.shape[1] + 1))
+    Zm[:, 0] = c
+    Zm[:, 1:] = G
+    return Zm
+
+
+@njit(cache=True)
 def _bilinear(Q, i, Z1, Z2):
     """``Z1.T @ Q[i] @ Z2`` with plain loops."""
     return mat_mat(Z1.T, mat_mat(Q[i], Z2))
@@ -34,12 +43,9 @@ def _bilinear(Q, i, Z1, Z2):
 @njit(cache=True)
 def quad_map(c, G, Q):
     """Enclosure of ``{(x^T Q_i x)_i | x in Z}``; Q has shape (k, n, n) (CORA's quadMap)."""
-    n = c.shape[0]
     m = G.shape[1]
     k = Q.shape[0]
-    Zm = np.empty((n, m + 1))
-    Zm[:, 0] = c
-    Zm[:, 1:] = G
+    Zm = _stacked(c, G)
     ng = m + (m + 1) * m // 2
     cout = np.zeros(k)
     Gout = np.zeros((k, ng))
@@ -62,16 +68,11 @@ def quad_map(c, G, Q):
 @njit(cache=True)
 def quad_map_mixed(c1, G1, c2, G2, Q):
     """Enclosure of ``{(x^T Q_i y)_i | x in Z1, y in Z2}``."""
-    n = c1.shape[0]
     m1 = G1.shape[1]
     m2 = G2.shape[1]
     k = Q.shape[0]
-    Z1 = np.empty((n, m1 + 1))
-    Z1[:, 0] = c1
-    Z1[:, 1:] = G1
-    Z2 = np.empty((n, m2 + 1))
-    Z2[:, 0] = c2
-    Z2[:, 1:] = G2
+    Z1 = _stacked(c1, G1)
+    Z2 = _stacked(c2, G2)
     cout = np.zeros(k)
     Gout = np.zeros((k, (m1 + 1) * (m2 + 1) - 1))
     for i in range(k):
