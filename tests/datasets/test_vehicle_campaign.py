@@ -59,3 +59,7 @@ def test_campaign_on_a_pool_is_the_serial_campaign():
         np.testing.assert_array_equal(a.Y, b.Y)
         np.testing.assert_array_equal(a.U, b.U)
         assert a.extras.keys() == b.extras.keys()
+    from reachconf.errors import OptionsError
+
+    with pytest.raises(OptionsError, match="pool must be a reachconf.runner.Pool"):
+        make_campaign(pool=2, **kw)

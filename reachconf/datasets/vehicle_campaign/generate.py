@@ -15,9 +15,11 @@ from __future__ import annotations
 from tqdm.auto import tqdm
 
 from reachconf.datasets.vehicle_campaign.maneuvers import reference_path
+from reachconf.errors import OptionsError
 from reachconf.datasets.vehicle_campaign.plant import PlantEffects, simulate_maneuver
 from reachconf.io.cases import TestCase, TestSuite
 from reachconf.io.files import save_suite
+from reachconf.runner.pool import Pool
 
 __all__ = ["CAMPAIGN_MANEUVERS", "CAMPAIGN_ACCELERATIONS", "make_campaign", "make_case"]
 
@@ -52,6 +54,8 @@ def make_campaign(folder=None, effects=PlantEffects(), seed=0, repetitions=5, ma
     ``pool`` (a :class:`reachconf.runner.Pool`) simulates the runs on its workers; every run has its own seed, so the
     suite is the same with or without it.
     """
+    if pool is not None and not isinstance(pool, Pool):
+        raise OptionsError(f"make_campaign: pool must be a reachconf.runner.Pool or None, got {type(pool).__name__}")
     jobs = [(k, a, r, effects, seed, feedforward_only) for k in maneuvers for a in accelerations for r in range(repetitions)]
     if pool is not None and pool.parallel:
         cases = pool.map(_case_job, jobs, desc="campaign", progress=progress)
