@@ -127,16 +127,16 @@ STREAM_TUBE_BYTES = 512 * 2**20
 
 def cmd_reach(args, run):
     """``reachconf reach RUN.toml``: reach tubes per test case (``.npz`` and X-Y pictures)."""
-    import matplotlib.pyplot as plt
-
     import dataclasses
+
+    import matplotlib.pyplot as plt
 
     from reachconf.cli_cases import map_cases, reach_case
     from reachconf.conformance.reachset import initial_set, reach_plan
 
     spec = _load(args)
     suite = _select_cases(spec, args)
-    X0s = {case.name: spec.X0 if spec.X0 is not None else initial_set(spec.model, case, spec.V) for case in suite}
+    X0s = spec.initial_sets(suite) or {case.name: initial_set(spec.model, case, spec.V) for case in suite}
     out = run.outputs.folder
     # pre-flight: every case's memory before the first one starts; big tubes are streamed
     plan = {case.name: reach_plan(spec.model, spec.reach_options, case, STREAM_TUBE_BYTES) for case in suite}
@@ -213,9 +213,10 @@ def cmd_conform(args, run):
             check_memory(f"reachset conformance of case {case.name!r}", reach_step_count(case.t, spec.reach_options),
                          per, fixed)  # fmt: skip
     results = run.partial = {}
+    X0s = spec.initial_sets(suite) or {}  # no entry: eq. 67
 
     def jobs(parallel):
-        return [(spec.model, case, spec.W, spec.V, spec.X0, kinds, spec.trace_method, spec.trace_options,
+        return [(spec.model, case, spec.W, spec.V, X0s.get(case.name), kinds, spec.trace_method, spec.trace_options,
                  spec.reach_options, False if parallel else (True if case.t.size >= PROGRESS_SAMPLES else None),
                  args.time_limit)
                 for case in suite]  # fmt: skip
@@ -245,7 +246,7 @@ def cmd_synth(args, run):
         raise DataError(f"{spec.path}: synthesis needs sets.V")
     suite = _select_cases(spec, args)
     workers, scheduler = pool_settings(args, spec)  # --scheduler overrides the file's workers
-    res = synthesize_W(spec.model, suite, spec.V, spec.synthesis_options, workers=workers, scheduler=scheduler)
+    res = synthesize_W(spec.model, suite, spec.V, spec.synthesis_options_for(suite), workers=workers, scheduler=scheduler)
     print(res.table())
     for c in res.cases.values():
         print(f"  {c.name}: alpha = {c.alpha:.4g}, W_RC {c.verdict.label}, {c.seconds:.2f} s"
@@ -298,8 +299,7 @@ def cmd_diagnose(args, run):
     suite = _select_cases(spec, args, segments=False)
     kwargs = diagnose_settings(spec, cases=getattr(args, "case", None))
     workers = args.workers if args.workers is not None else spec.workers
-    report = diagnose(spec.model, suite, V=spec.V, progress=progress_shown(), workers=workers,
-                      **kwargs)  # no bar in a log file  # fmt: skip
+    report = diagnose(spec.model, suite, V=spec.V, progress=progress_shown(), workers=workers, **kwargs)
     if args.json:
         report.to_json(args.json)
     out = run.outputs.folder

@@ -55,6 +55,7 @@ def cmd_pareto(args, run, load, select_cases, savefig):
     if spec.V is None:
         raise DataError(f"{spec.path}: the Pareto front needs sets.V")
     suite = select_cases(spec, args)
+    options = spec.synthesis_options_for(suite)  # [sets] X0 or unmeasured per case
     out = run.outputs.folder
     run.partial = {}
     workers, scheduler = pool_settings(args, spec)  # --scheduler overrides the file's workers
@@ -64,13 +65,13 @@ def cmd_pareto(args, run, load, select_cases, savefig):
         if start is not None:
             print("start: the run file's [sets] W (every box keeps its centre; without W: the synthesis's boxes)")
         if start is None:
-            synth = synthesize_W(spec.model, suite, spec.V, spec.synthesis_options, pool=pool)
+            synth = synthesize_W(spec.model, suite, spec.V, options, pool=pool)
             synth.save(out / "synthesis.json")
             run.partial["synthesis"] = synth.to_dict()
             start = pareto_start(synth)
             print(f"start: the hull of the synthesis's boxes ({synth.seconds:.1f} s; merge {synth.merge_seconds:.1f} s)")
         front = pareto_front(spec.model, suite, spec.V, start, check=args.check, iterations=args.iterations,
-                             options=spec.synthesis_options, pool=pool)  # fmt: skip
+                             options=options, pool=pool)  # fmt: skip
     front.save(out / "front.json")
     savefig(front.plot().figure, out / "front.png")
     names = front.disturbance_names

@@ -13,6 +13,10 @@ Example::
     W = [[-0.05, 0.05], [-0.05, 0.05], [-0.01, 0.01], [-0.1, 0.1], [-0.1, 0.1], [-0.05, 0.05]]
     V = [[-0.02, 0.02], ...]
     X0 = [[...], ...]                  # optional; default eq. 67 (first sample ⊕ V)
+    [sets.X0]                          # or one initial set per case, by case name
+    LC_1 = [[...], ...]
+    [sets.unmeasured]                  # or eq. 67 for the states that are outputs, these bounds for the others
+    v = [-0.5, 0.5]
     [reach]                            # ReachOptions fields
     time_step = 0.02
     [trace]                            # TraceOptions fields, plus method = "auto" | "perstep" | "optctrl"
@@ -30,6 +34,12 @@ Example::
 instead of each whole case: the shorter horizons of the report's section 4.3.3, for recordings too long for
 one reach; ``segment_step`` (at most the length) starts one every that many seconds instead (sliding
 windows).  They need eq. 67's initial sets (no ``[sets] X0``); ``diagnose`` ignores them.
+
+``[sets] unmeasured`` is for a model with states that are not outputs: each case (or segment) starts from its
+first sample plus V for the measured states and from the given bounds for the others
+(:func:`reachconf.conformance.initial_set`); with segments the bounds must hold at every segment's start.
+``[sets.X0]`` as a table gives each case its own initial set (every checked case needs one).  Neither is used by
+``diagnose``.
 """
 
 from __future__ import annotations
@@ -48,6 +58,7 @@ from reachconf.diagnose.effects import EFFECTS
 from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.errors import DataError, ReachconfError
 from reachconf.io.files import load_suite
+from reachconf.model.outputs import unmeasured_bounds
 from reachconf.model.core import Model
 from reachconf.models import get_model
 from reachconf.reach_options import ReachOptions
@@ -78,10 +89,38 @@ class RunSpec:
     raw: dict
     segment_length: float | None = None
     segment_step: float | None = None
+    unmeasured: dict | None = None
 
     def suite(self):
         """The test suite the run file names (loaded with the model's signal names)."""
         return load_suite(self.suite_path, model=self.model)
+
+    def initial_sets(self, suite) -> dict | None:
+        """Each case's initial set from ``[sets]``: ``{case name: set}``, or None for eq. 67 throughout.
+
+        ``X0`` as one box is every case's; ``X0`` as a table must name every case of ``suite``;
+        ``unmeasured`` gives eq. 67 for the measured states and its bounds for the others (needs V).
+        """
+        from reachconf.conformance.reachset import initial_set
+
+        if isinstance(self.X0, Interval):
+            return {case.name: self.X0 for case in suite}
+        if isinstance(self.X0, dict):
+            missing = [case.name for case in suite if case.name not in self.X0]
+            if missing:
+                raise DataError(f"{self.path}: [sets.X0] has no initial set for the cases {missing[:5]}"
+                                f"{' ...' if len(missing) > 5 else ''} (one [lo, hi] list per case name)")  # fmt: skip
+            return {case.name: self.X0[case.name] for case in suite}
+        if self.unmeasured is not None:
+            if self.V is None:
+                raise DataError(f"{self.path}: [sets] unmeasured needs sets.V (eq. 67 for the measured states)")
+            return {case.name: initial_set(self.model, case, self.V, self.unmeasured) for case in suite}
+        return None
+
+    def synthesis_options_for(self, suite):
+        """:attr:`synthesis_options` with ``X0`` set for ``suite``'s cases (:meth:`initial_sets`)."""
+        per_case = isinstance(self.X0, dict) or self.unmeasured is not None
+        return dataclasses.replace(self.synthesis_options, X0=self.initial_sets(suite) if per_case else self.X0)
 
 
 def resolve_model(name: str, params=None, where="model", base=None):
@@ -201,12 +240,16 @@ def load_run(path) -> RunSpec:
         raise DataError(f"{path}: description must be a string")
     suite_path = _folder(path.parent, raw["suite"], f"{path}: suite")
     sets = _table(raw, "sets", str(path))
-    unknown = sorted(set(sets) - {"W", "V", "X0"})
+    unknown = sorted(set(sets) - {"W", "V", "X0", "unmeasured"})
     if unknown:
-        raise DataError(f"{path}: [sets] unknown sets {unknown}; allowed: W, V, X0")
+        raise DataError(f"{path}: [sets] unknown sets {unknown}; allowed: W, V, X0, unmeasured")
     W = _interval(sets["W"], model.q, f"{path}: sets.W") if "W" in sets else None
     V = _interval(sets["V"], model.p, f"{path}: sets.V") if "V" in sets else None
-    X0 = _interval(sets["X0"], model.n, f"{path}: sets.X0") if "X0" in sets else None
+    X0 = _initial_sets(sets["X0"], model.n, f"{path}: sets.X0") if "X0" in sets else None
+    unmeasured = _unmeasured(sets["unmeasured"], model, f"{path}: sets.unmeasured") if "unmeasured" in sets else None
+    if X0 is not None and unmeasured is not None:
+        raise DataError(f"{path}: [sets] gives both X0 and unmeasured; give one (unmeasured: eq. 67 for the "
+                        f"measured states)")  # fmt: skip
     reach_opts = _options(ReachOptions, _table(raw, "reach", str(path)), f"{path}: [reach]")
     trace_tab = _table(raw, "trace", str(path))
     method = trace_tab.get("method", "auto")
@@ -218,7 +261,8 @@ def load_run(path) -> RunSpec:
         raise DataError(f"{path}: [synthesis] cannot hold 'reach'/'trace'/'X0': use the [reach] and [trace] tables "
                         f"and [sets] X0")  # fmt: skip
     synth_opts = _options(SynthesisOptions, synth_tab, f"{path}: [synthesis]")
-    synth_opts = dataclasses.replace(synth_opts, reach=reach_opts, trace=trace_opts, X0=X0)
+    synth_opts = dataclasses.replace(synth_opts, reach=reach_opts, trace=trace_opts,
+                                     X0=X0 if isinstance(X0, Interval) else None)  # per case: synthesis_options_for
     try:
         workers = check_workers(raw.get("workers"))
     except ReachconfError as exc:
@@ -230,7 +274,30 @@ def load_run(path) -> RunSpec:
     if step is not None:
         step = check_segment_step(step, length, f"{path}: segment_step", "segment_length")
     return RunSpec(path, model, suite_path, W, V, X0, reach_opts, method, trace_opts, synth_opts, workers, raw,
-                   length, step)  # fmt: skip
+                   length, step, unmeasured)  # fmt: skip
+
+
+def _initial_sets(value, dim, where):
+    """``[sets] X0``: one list of [lo, hi] pairs, or a table of them by case name."""
+    if not isinstance(value, dict):
+        return _interval(value, dim, where)
+    if not value:
+        raise DataError(f"{where}: the table of per-case initial sets is empty")
+    return {str(name): _interval(box, dim, f"{where}.{name}") for name, box in value.items()}
+
+
+def _unmeasured(value, model, where) -> dict:
+    """``[sets] unmeasured``: a table ``state = [lo, hi]`` of exactly the states that are not outputs."""
+    if not isinstance(value, dict):
+        raise DataError(f"{where}: must be a table of state = [lo, hi], got {value!r}"[:300])
+    for name, pair in value.items():
+        if not (isinstance(pair, list) and len(pair) == 2 and all(_is_number(v) for v in pair)):
+            raise DataError(f"{where}.{name}: must be a pair [lo, hi] of numbers, got {pair!r}"[:300])
+    try:
+        unmeasured_bounds(model, value)
+    except ReachconfError as exc:
+        raise DataError(f"{where}: {exc}") from None
+    return {name: tuple(float(v) for v in pair) for name, pair in value.items()}
 
 
 def check_segment_length(value, where: str, X0=None) -> float:

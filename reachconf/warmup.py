@@ -52,10 +52,11 @@ def warm_up_target(target, orders=(2, 3)):
     """
     if str(target).endswith(".toml"):
         spec = load_run(target)
-        options = spec.synthesis_options
+        full = next(iter(spec.suite()))
+        X0 = (spec.initial_sets(TestSuite([full])) or {}).get(full.name)  # [sets] X0 / unmeasured; None: eq. 67
+        options = dataclasses.replace(spec.synthesis_options, X0=X0)
         reach = (spec.reach_options, options.reach, options.reach_fallback)
-        case = next(iter(spec.suite()))
-        case = case.segment(case.t[0], case.t[min(SAMPLES, case.t.size) - 1])
+        case = full.segment(full.t[0], full.t[min(SAMPLES, full.t.size) - 1])
         V = spec.V if spec.V is not None else Interval(-np.ones(spec.model.p), np.ones(spec.model.p))
         return spec.model, reach, TestSuite([case]), V, options
     model = resolve_model(str(target), where=f"warmup {target}")

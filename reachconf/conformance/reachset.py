@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -17,7 +16,7 @@ from reachconf.io.results import JsonResult
 from reachconf.plot import plot_measured
 from reachconf.model.core import require_model
 from reachconf.model.outputs import (affine_output, output_enclosure, output_index_of_states, outputs_of_states,
-                                     state_estimate)
+                                     state_estimate, unmeasured_bounds)
 from reachconf.reach import ReachStopped, integration_steps, reach_run
 from reachconf.reach_options import AdaptiveReach, ReachOptions
 from reachconf.reach_stream import streamed_bytes_per_step
@@ -200,29 +199,12 @@ def initial_set(model, case, V, unmeasured=None) -> Interval | Zonotope:
 
 def _partly_measured(model, y1, V_lo, V_hi, unmeasured) -> Interval:
     """Eq. 67 for the states that are outputs, the given bounds for the others."""
-    if not isinstance(unmeasured, Mapping):
-        raise OptionsError(f"unmeasured must map state names to (lo, hi), got {type(unmeasured).__name__}")
-    measured = {model.state_names[j]: i for j, i in outputs_of_states(model).items()}
-    unknown = sorted(set(unmeasured) - set(model.state_names))
-    if unknown:
-        raise OptionsError(f"unmeasured: {unknown} are not states of model {model.name!r} ({model.state_names})")
-    wrong = sorted(set(unmeasured) & set(measured))
-    missing = [x for x in model.state_names if x not in measured and x not in unmeasured]
-    if wrong or missing:
-        raise OptionsError(f"unmeasured must give exactly the states that are not outputs of model {model.name!r}: "
-                           f"{'outputs given: ' + str(wrong) if wrong else 'missing: ' + str(missing)}")  # fmt: skip
+    bounds = unmeasured_bounds(model, unmeasured)
     lo, hi = np.empty(model.n), np.empty(model.n)
-    for j, name in enumerate(model.state_names):
-        if name in measured:
-            i = measured[name]
-            lo[j], hi[j] = y1[i] + V_lo[i], y1[i] + V_hi[i]
-            continue
-        try:
-            lo[j], hi[j] = (float(v) for v in unmeasured[name])
-        except (TypeError, ValueError):
-            raise OptionsError(f"unmeasured[{name!r}] must be a pair (lo, hi), got {unmeasured[name]!r}") from None
-        if not (np.isfinite(lo[j]) and np.isfinite(hi[j]) and lo[j] <= hi[j]):
-            raise OptionsError(f"unmeasured[{name!r}] must be finite with lo <= hi, got {unmeasured[name]!r}")
+    for j, i in outputs_of_states(model).items():
+        lo[j], hi[j] = y1[i] + V_lo[i], y1[i] + V_hi[i]
+    for j, (lo_j, hi_j) in bounds.items():
+        lo[j], hi[j] = lo_j, hi_j
     return Interval(lo, hi)
 
 

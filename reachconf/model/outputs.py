@@ -15,10 +15,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import sympy as sp
 
-from reachconf.errors import ConformanceError, ReachError
+from reachconf.errors import ConformanceError, OptionsError, ReachError
 from reachconf.io.cases import case_arrays
 from reachconf.sets.core import Interval, Zonotope
 from reachconf.sets.union import SetUnion
@@ -174,6 +176,47 @@ def outputs_of_states(model) -> dict:
         hit = [i for i, e in enumerate(model.h_expr) if isinstance(e, sp.Symbol) and e == s]
         if hit:
             out[j] = hit[0]
+    return out
+
+
+def unmeasured_bounds(model, unmeasured) -> dict:
+    """Checked bounds of the states that are not outputs: ``{state index: (lo, hi)}``.
+
+    Parameters
+    ----------
+    model : reachconf.Model
+    unmeasured : mapping of state name to (lo, hi)
+        Every state that is not an output directly (:func:`outputs_of_states`), and only those.
+
+    Returns
+    -------
+    dict of int to (float, float)
+
+    Raises
+    ------
+    OptionsError
+        Not a mapping, unknown or measured state names, missing states, pairs that are not finite ``lo <= hi``.
+    """
+    if not isinstance(unmeasured, Mapping):
+        raise OptionsError(f"unmeasured must map state names to (lo, hi), got {type(unmeasured).__name__}")
+    measured = {model.state_names[j] for j in outputs_of_states(model)}
+    unknown = sorted(set(unmeasured) - set(model.state_names))
+    if unknown:
+        raise OptionsError(f"unmeasured: {unknown} are not states of model {model.name!r} ({model.state_names})")
+    wrong = sorted(set(unmeasured) & measured)
+    missing = [x for x in model.state_names if x not in measured and x not in unmeasured]
+    if wrong or missing:
+        raise OptionsError(f"unmeasured must give exactly the states that are not outputs of model {model.name!r}: "
+                           f"{'outputs given: ' + str(wrong) if wrong else 'missing: ' + str(missing)}")  # fmt: skip
+    out = {}
+    for name, pair in unmeasured.items():
+        try:
+            lo, hi = (float(v) for v in pair)
+        except (TypeError, ValueError):
+            raise OptionsError(f"unmeasured[{name!r}] must be a pair (lo, hi), got {pair!r}") from None
+        if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+            raise OptionsError(f"unmeasured[{name!r}] must be finite with lo <= hi, got {pair!r}")
+        out[model.state_names.index(name)] = (lo, hi)
     return out
 
 
