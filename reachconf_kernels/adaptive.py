@@ -35,6 +35,8 @@ reachability analysis of nonlinear systems", HSCC 2021 (CORA's
   keeps at least the start set's generators, and a step is not made
   smaller where that cannot lower its rate (``FUTILE_SHRINK``): the run
   goes on over budget instead of giving up at the smallest step.
+* **stale floors**: a step about to be cut near its limit by a floor from
+  an earlier set (reused) first measures it on its own set (``REMEASURE_NEAR``).
 * **Taylor terms**: the first neglected term of ``e^{|A| dt}`` below 1 %
   (at least ``taylor_min``; the remainder is bounded either way); a step
   that needs more than ``MAX_TAYLOR_TERMS`` is halved (a stiff linear part).
@@ -104,6 +106,11 @@ FLOOR_REUSE = 8
 #: widens the set within a step as much as its radius they raise it (the set they divide by is smaller).  Without
 #: it the step shrank to its limit, and the reach gave up, on sets whose floor is over budget.
 FUTILE_SHRINK = 1.05
+#: A step about to be made shorter than this many times the step limit, by an error floor measured on an earlier set
+#: (reused, ``FLOOR_REUSE``) or at a step over ten times as long, first measures the floor on its own set at its own
+#: step: the rate a step tends to grows as the step shrinks, and the stale floor's lower goal shrank the wide
+#: rate-limited lane change (``tests/reach/test_reach_rate_limited.py``) past its limit near its end.
+REMEASURE_NEAR = 10.0
 #: Largest reduction tolerance per step (fraction of the hull diagonal).
 MAX_RED_TOL = 1e-3
 
@@ -306,6 +313,7 @@ def adaptive_run(
         w_rate = relative_rate(np.abs(BW).sum(axis=1), rate_radius(G, c, fpar), 0.0)  # the disturbance's growth rate
         rho0 = -1.0
         rho_lim = -1.0
+        floor_dt = -1.0  # the step at which rho0 was measured on this set (-1: reused from an earlier set)
         futile = False  # last budget and the rate within FUTILE_SHRINK of the floor's dt -> 0 limit
         tries = 0
         state[S_FAIL_CODE] = 0.0
@@ -372,6 +380,7 @@ def adaptive_run(
                     rho_lim = state[S_FLOOR_LIM]
                 else:
                     rho0, rho_lim = floor_rates(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt)
+                    floor_dt = dt
                     state[S_FLOOR] = rho0
                     state[S_FLOOR_AGE] = 0.0
                     state[S_FLOOR_KAPPA] = kappa
@@ -388,6 +397,7 @@ def adaptive_run(
                     kappa = 3
                     rho0 = rho3
                     rho_lim = lim3
+                    floor_dt = dt
                     state[S_FLOOR] = rho3
                     state[S_FLOOR_LIM] = lim3
                     state[S_FLOOR_AGE] = 0.0
@@ -397,8 +407,13 @@ def adaptive_run(
             # goal: the rate at the budget, or, where the floor alone is near it, the floor plus a share of it
             goal = max(beta, rho0 + max(fpar[P_EXCESS] * beta, fpar[P_EXCESS_REL] * rho0))
             futile = last and rho <= FUTILE_SHRINK * rho_lim
+            shrink = min(0.9, max(0.1, 0.9 * (goal - rho0) / max(rho - rho0, 1e-300)))
+            if (rho > 1.05 * goal and dt > 4.0 * dt_min and not futile and dt * shrink < REMEASURE_NEAR * dt_min
+                    and (floor_dt < 0.0 or dt < 0.1 * floor_dt)):  # fmt: skip
+                rho0 = -1.0  # near the step limit by a floor from an earlier set or a longer step: measure it here
+                continue
             if rho > 1.05 * goal and dt > 4.0 * dt_min and not futile:
-                dt *= min(0.9, max(0.1, 0.9 * (goal - rho0) / max(rho - rho0, 1e-300)))
+                dt *= shrink
                 continue
             if rho0 <= split_frac * beta:
                 break
