@@ -58,8 +58,8 @@ from reachconf.diagnose.effects import EFFECTS
 from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.errors import DataError, ReachconfError
 from reachconf.io.files import load_suite
-from reachconf.model.outputs import unmeasured_bounds
 from reachconf.model.core import Model
+from reachconf.model.outputs import unmeasured_bounds
 from reachconf.models import get_model
 from reachconf.reach_options import ReachOptions
 from reachconf.sets.core import Interval
@@ -80,7 +80,7 @@ class RunSpec:
     suite_path: Path
     W: Interval | None
     V: Interval | None
-    X0: Interval | None
+    X0: Interval | dict | None  # one box, or {case name: box} ([sets.X0] as a table)
     reach_options: object
     trace_method: str
     trace_options: object
