@@ -44,8 +44,13 @@ TABLE_KEYS = {
               "reduction", "progress", "rounding", "colour"],
     "trace": ["method", "substeps", "epsilon", "objective", "anchor", "solver"],
     "synthesis": ["alpha_iterations", "alpha_max", "optimize", "merge_iterations", "step2_decimate", "reach"],
-    "sets": ["W", "V", "X0", "Z"],
+    "sets": ["W", "V", "X0", "Z", "unmeasured"],
 }  # fmt: skip
+#: [sets] values: lists of [lo, hi] pairs, or tables of them (X0 per case) or of pairs (unmeasured states)
+set_values = st.one_of(boxes, boxes, st.dictionaries(
+    st.sampled_from(["lane_change_01", "lane_change_02", "lane_change_03", "vx", "delta", "q"]),
+    st.one_of(boxes, st.lists(st.one_of(st.floats(-2, 2), st.integers(-2, 2), st.booleans()), max_size=3)),
+    max_size=3))  # fmt: skip
 
 
 @st.composite
@@ -63,7 +68,7 @@ def run_files(draw):
             if not isinstance(table, dict):
                 continue
             key = draw(st.sampled_from(TABLE_KEYS[where]))
-            table[key] = draw(boxes if where == "sets" else st.one_of(values, st.floats(0, 1e12)))
+            table[key] = draw(set_values if where == "sets" else st.one_of(values, st.floats(0, 1e12)))
     return doc
 
 
