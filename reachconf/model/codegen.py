@@ -241,10 +241,10 @@ def compile_model(model, order: int = 2, remainder: str = "taylor") -> CompiledM
         except ModelError:
             raise
         except Exception as exc:  # e.g. sympy cannot print the derivative of floor: name the model, not the printer
+            hint = ("a constant overflows float64 (|c| > 1.8e308): rescale the model" if isinstance(exc, OverflowError)
+                    else "write the dynamics with +, -, *, /, powers, sqrt, exp, log, sin, cos, tan, atan, tanh, Abs, Min, Max")
             raise ModelError(f"model {model.name!r}: cannot generate code for its derivatives "
-                             f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); write the "
-                             f"dynamics with +, -, *, /, powers, sqrt, exp, log, sin, cos, tan, atan, tanh, Abs, Min, "
-                             f"Max") from None  # fmt: skip
+                             f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); {hint}") from None
         atomic_write(path, source)
         buf = io.BytesIO()
         np.savez(buf, **meta)

@@ -222,8 +222,8 @@ class Model:
             raise ModelError(f"model {self.name!r}: {where} is not a valid expression: {exc}") from None
         if not isinstance(expr, sp.Expr):
             raise ModelError(f"model {self.name!r}: {where} is not a scalar expression: {expr!r}")
-        if expr.has(sp.nan, sp.oo, -sp.oo, sp.zoo):
-            raise ModelError(f"model {self.name!r}: {where} is not finite: {expr}")
+        if expr.has(sp.nan, sp.oo, -sp.oo, sp.zoo) or any(abs(a) > 1.7976931348623157e308 for a in expr.atoms(sp.Number)):
+            raise ModelError(f"model {self.name!r}: {where} is not finite (as float64): {expr}")
         undefined = sorted({str(f.func) for f in expr.atoms(sp.core.function.AppliedUndef)})
         if undefined:
             raise ModelError(f"model {self.name!r}: {where} uses the undefined function(s) {undefined}; "

@@ -59,6 +59,8 @@ def test_a_set_across_a_kink_stops_with_the_operation_named():
 @pytest.mark.parametrize("dyn, needle", [
     (lambda s: [s.x + sp.oo], "is not finite"),
     (lambda s: [sp.nan * s.x], "is not finite"),
+    (lambda s: [sp.Float("1e400") * s.x], r"is not finite \(as float64\)"),
+    (lambda s: [sp.Integer(10) ** 400 * s.x], r"is not finite \(as float64\)"),
     (lambda s: [sp.Function("g")(s.x)], r"undefined function\(s\) \['g'\]"),
     (lambda s: [sp.Derivative(s.x**2, s.x)], "unevaluated derivative"),
 ])
@@ -70,6 +72,10 @@ def test_expressions_that_cannot_be_a_model_are_refused_when_built(dyn, needle):
 def test_code_that_cannot_be_generated_names_the_model():
     m = rc.Model(name="floor_model", states=("x",), dynamics=lambda s: [-sp.floor(s.x)])
     with pytest.raises(rc.ModelError, match="model 'floor_model': cannot generate code"):
+        m.f([0.5])
+    # finite constants whose derivatives overflow float64 (the Hessian of 1e306 x^1000 holds 9.99e311): named as such
+    m = rc.Model(name="overflow_model", states=("x",), dynamics=lambda s: [-sp.Float("1e306") * s.x**1000])
+    with pytest.raises(rc.ModelError, match=r"cannot generate code .*a constant overflows float64"):
         m.f([0.5])
 
 
