@@ -69,6 +69,16 @@ def test_expressions_that_cannot_be_a_model_are_refused_when_built(dyn, needle):
         rc.Model(name="bad_expr", states=("x",), dynamics=dyn)
 
 
+def test_the_legacy_tensor_remainder_points_to_taylor_mode():
+    """The legacy ``remainder="tensor"`` path prints the derivatives symbolically; a second derivative of Abs is a
+    DiracDelta, which it cannot bound: the error says which remainder can."""
+    m = _model()
+    opts = rc.ReachOptions(algorithm="lin", tensor_order=3, remainder="tensor")
+    with pytest.raises(rc.ModelError, match=r"DiracDelta.*second derivative of Abs, Min or Max.*remainder='taylor'"):
+        rc.reach(m, rc.Interval([0.9, 0.5], [1.1, 0.6]), np.linspace(0.0, 0.1, 3), inputs=np.zeros((3, 1)),
+                 options=opts)  # fmt: skip
+
+
 def test_code_that_cannot_be_generated_names_the_model():
     m = rc.Model(name="floor_model", states=("x",), dynamics=lambda s: [-sp.floor(s.x)])
     with pytest.raises(rc.ModelError, match="model 'floor_model': cannot generate code"):
