@@ -52,6 +52,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from reachconf.checks import check_workers
+from reachconf.conformance.alpha import missing_initial_sets
 from reachconf.conformance.synthesis import SynthesisOptions
 from reachconf.conformance.trace import METHODS, TraceOptions
 from reachconf.diagnose.effects import EFFECTS
@@ -106,10 +107,10 @@ class RunSpec:
         if isinstance(self.X0, Interval):
             return {case.name: self.X0 for case in suite}
         if isinstance(self.X0, dict):
-            missing = [case.name for case in suite if case.name not in self.X0]
+            missing = missing_initial_sets(self.X0, suite)
             if missing:
-                raise DataError(f"{self.path}: [sets.X0] has no initial set for the cases {missing[:5]}"
-                                f"{' ...' if len(missing) > 5 else ''} (one [lo, hi] list per case name)")  # fmt: skip
+                raise DataError(f"{self.path}: [sets.X0] has no initial set for the cases {missing} (one [lo, hi] list "
+                                f"per case name)")  # fmt: skip
             return {case.name: self.X0[case.name] for case in suite}
         if self.unmeasured is not None:
             if self.V is None:
@@ -294,10 +295,10 @@ def _unmeasured(value, model, where) -> dict:
         if not (isinstance(pair, list) and len(pair) == 2 and all(_is_number(v) for v in pair)):
             raise DataError(f"{where}.{name}: must be a pair [lo, hi] of numbers, got {pair!r}"[:300])
     try:
-        unmeasured_bounds(model, value)
+        bounds = unmeasured_bounds(model, value)
     except ReachconfError as exc:
         raise DataError(f"{where}: {exc}") from None
-    return {name: tuple(float(v) for v in pair) for name, pair in value.items()}
+    return {model.state_names[j]: pair for j, pair in bounds.items()}
 
 
 def check_segment_length(value, where: str, X0=None) -> float:

@@ -98,3 +98,9 @@ def case_initial_set(options, case):
                                f"every case checked)")  # fmt: skip
         return X0[case.name]
     return X0
+
+
+def missing_initial_sets(X0, cases) -> str:
+    """The names of ``cases`` that a per-case ``X0`` mapping lacks, as text for an error (the first five), or ""."""
+    missing = [c.name for c in cases if c.name not in X0] if isinstance(X0, dict) else []
+    return f"{missing[:5]}{' ...' if len(missing) > 5 else ''}" if missing else ""

@@ -15,8 +15,8 @@ from __future__ import annotations
 from tqdm.auto import tqdm
 
 from reachconf.datasets.vehicle_campaign.maneuvers import reference_path
-from reachconf.errors import OptionsError
 from reachconf.datasets.vehicle_campaign.plant import PlantEffects, simulate_maneuver
+from reachconf.errors import OptionsError
 from reachconf.io.cases import TestCase, TestSuite
 from reachconf.io.files import save_suite
 from reachconf.runner.pool import Pool
