@@ -71,6 +71,8 @@ from reachconf_kernels.reduce_adaptive import reduce_adaptive
 from reachconf_kernels.small_linalg import mat_mat
 from reachconf_kernels.signatures import FN_IV_REMAINDER, FN_POINT_MAT, FN_POINT_T3, FN_POINT_VEC, f8_1, f8_2
 
+_i8, _f8, _G = types.int64, types.float64, types.float64[:, :]  # one compiled floor for any layout of G and kappa
+
 # return codes of adaptive_run (the step's own codes 1..4 come back in fail[0])
 DONE = 0
 CHUNK = 5  # reached the sample k_stop
@@ -140,7 +142,7 @@ def rate_radius(G, c, fpar):
     return rad
 
 
-@njit(cache=True)
+@njit((f8_1, _G, f8_1, f8_1, f8_2, f8_1, FN_POINT_T3, FN_IV_REMAINDER, _i8, _f8, _f8), cache=True)
 def error_floor(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, err_order, err_tol):
     """Abstraction-error bound over the set itself (the ``dt -> 0`` limit of a step).
 
@@ -197,13 +199,13 @@ def error_floor(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, err_order, err_tol
         idx[i] = i
     for i in range(q):
         idx[n + i] = n + m + i
-    cr, Gr = reduce_adaptive(np.zeros(n), G, err_tol, err_order)
+    cr, Gr = reduce_adaptive(np.zeros(n), np.ascontiguousarray(G), err_tol, err_order, np.int64(0))  # (one compile)
     cz, Gz = extend_with_disturbance(cr, Gr, WG, n, q, True)
     qc, qG, _rnd = quadratic_error(cz, Gz, Hp, n, idx)  # an estimate for the step control: no rounding box
     return abs_bound(qc, qG) + out, 0
 
 
-@njit(cache=True)
+@njit((f8_1, _G, f8_1, f8_1, f8_2, f8_1, FN_POINT_T3, FN_IV_REMAINDER, _i8, f8_1, _f8), cache=True)
 def floor_rates(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt):
     """The error floor as a rate (``relative_rate`` of :func:`error_floor`) at the step ``dt``, and its limit for
     ``dt -> 0`` (the floor over the set's own radius: what a step's rate tends to as the step shrinks)."""
@@ -215,14 +217,12 @@ def floor_rates(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt):
     return relative_rate(e0, rad, dt), relative_rate(e0, rad, 0.0)
 
 
-@njit(cache=True)
+@njit((f8_1, _G, f8_1, f8_1, f8_2, f8_1, FN_POINT_T3, FN_IV_REMAINDER, _i8, f8_1, _f8), cache=True)
 def floor_rate(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt):
     """The error floor as a rate at the step ``dt`` (the first of :func:`floor_rates`)."""
     return floor_rates(c, G, u, wc, WG, p, hess, lagrange_iv, kappa, fpar, dt)[0]
 
 
-_i8 = types.int64
-_f8 = types.float64
 _i8_1 = types.int64[::1]
 ADAPTIVE_ARGS = (
     f8_1, f8_2, f8_1, _i8, _f8, f8_2, f8_1, f8_2, f8_1,  # c0, G0, samples, k0, t0, U, wc, WG, p
@@ -349,7 +349,7 @@ def adaptive_run(
             inter = max(fpar[P_INTER_ORDER], (G.shape[1] + n) / n) if last else fpar[P_INTER_ORDER]
             ctp, Gtp, cti, Gti, e, st, bs, bt = nonlinear_step(
                 c, G, u, wc, WG, p, dt, r, f, jac, hess, lagrange_iv,
-                0, kappa, fpar[P_MAX_ORDER], inter, fpar[P_ERR_ORDER], 0,
+                np.int64(0), kappa, fpar[P_MAX_ORDER], inter, fpar[P_ERR_ORDER], np.int64(0),  # (not literal)
                 ipar[I_MAX_ITER], inf_err, err_warm, fpar[P_ROUND], red_tol, ipar[I_KEEP], info,
             )  # fmt: skip
             if st != OK:

@@ -474,7 +474,7 @@ def reach_loop(
         ctp, Gtp, cti, Gti, e, st, bs, bt = nonlinear_step(
             c, G, U[k], wc, WG, p, dts[k], r, f, jac, hess, lagrange_iv,
             algorithm, tensor_order, zono_order, inter_order, err_order, reduce_method,
-            max_iter, max_error, err, rel_round, 0.0, 0, info,
+            max_iter, max_error, err, rel_round, 0.0, np.int64(0), info,  # (not a literal: the adaptive run's compile)
         )  # fmt: skip
         if st != OK:
             err_trace[k] = e

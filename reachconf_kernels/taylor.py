@@ -50,7 +50,7 @@ from __future__ import annotations
 
 
 import numpy as np
-from numba import njit
+from numba import njit, types
 
 from reachconf_kernels import interval as I
 from reachconf_kernels import taylor_rules as R
@@ -83,7 +83,12 @@ TAPE_COLUMNS = 7
 #: highest Taylor coefficient the kernel computes
 MAX_ORDER = 3
 
-@njit(cache=True)
+# one signature for every caller (a literal order or start would compile the tape's interpreter again)
+_RO = types.Array(types.int64, 2, "C", readonly=True), types.Array(types.float64, 2, "C", readonly=True)
+_V, _M, _T = types.float64[::1], types.float64[:, ::1], types.float64[:, :, ::1]
+
+
+@njit((*_RO, _V, _V, _V, _V, _V, types.int64, _T, _M, types.int64, types.int64, types.int64, _T), cache=True)
 def evaluate(ops, consts, zlo, zhi, dlo, dhi, p, K, W, F, start, stop, max_deg, tight):
     """Fill ``W[node, k] = (lo, hi)`` of the nodes ``start`` to ``stop - 1``, coefficients ``k <= K``.
 
