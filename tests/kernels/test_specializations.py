@@ -2,7 +2,7 @@
 
 A literal argument (``kappa = 2`` written in a kernel) or a sliced array (layout ``A`` instead of ``C``) makes numba
 compile a function, and everything it calls, once more: on a fresh machine the error-floor chain was compiled five
-times and the step twice, about a third of the demo's first run.  The floor and the tape interpreter now have explicit
+times and the step twice (the demo's first run: 250 s, now 175 s; benchmarks/bench_first_run.py).  The floor and the tape interpreter now have explicit
 signatures and the step's callers pass no literals; this checks that the specialisations stay single.  A callee
 compiled into a caller that is loaded from the disk cache is not compiled at all (no signature in this process), so
 the test bites when the kernels compile: on every fresh machine (the CI) and after every change to them.
