@@ -126,6 +126,8 @@ def _exit_text(code) -> str:
             name = f"signal {-code}"
         hint = " - out of memory, or killed by hand?" if -code == signal.SIGKILL else ""
         return f"killed by {name}{hint}"
+    if code == 255:  # multiprocessing's forkserver reports 255 when it could not read the status (e.g. a SIGKILL)
+        return "exit status 255: unknown, or killed"
     return f"exit status {code}"
 
 

@@ -88,7 +88,8 @@ def test_lost_local_worker_is_reported_and_its_jobs_run_again(tmp_path, capsys):
         assert pool.map(square, [2, 3], progress=False) == [4, 9]  # the restarted pool keeps working
     assert os.path.exists(marker)
     err = capsys.readouterr().err
-    assert "reachconf: warning: lost local worker process" in err and "SIGKILL" in err
+    # (the forkserver cannot always read a killed process's status under load: then "255: unknown, or killed")
+    assert "reachconf: warning: lost local worker process" in err and ("SIGKILL" in err or "or killed" in err)
     assert len(pool.log) == 1 and "restart 1 of at most" in pool.log[0]
 
 
