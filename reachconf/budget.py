@@ -179,8 +179,8 @@ class TimeBudget:
 
     def check(self, done: float, total: float):
         """Project the run from ``done`` of ``total`` units of work; raise ResourceError if over the limit."""
-        if self.limit is None or self.checked or total <= 0 or done <= 0:
-            return
+        if self.limit is None or self.checked or total <= 0 or done <= 0 or done >= total:
+            return  # (all the work done: its result is kept, however long it took)
         if done / total < self.min_fraction and done < total:
             return
         self.checked = True
@@ -188,6 +188,11 @@ class TimeBudget:
         projected = spent * total / done
         if projected > self.limit:
             raise ResourceError(
-                f"{self.what}: projected {projected:,.0f} s for {total:,.0f} samples (measured {spent:.1f} s on the "
-                f"first {done:,.0f}) exceeds the time limit of {self.limit:,.0f} s; stopped before the rest"
+                f"{self.what}: projected {_seconds(projected)} s for {total:,.0f} samples (measured {_seconds(spent)} s "
+                f"on the first {done:,.0f}) exceeds the time limit of {_seconds(self.limit)} s; stopped before the rest"
             )
+
+
+def _seconds(x: float) -> str:
+    """Seconds for a message: three significant digits below 1000 s (0.000123, 0.4, 12.3), whole seconds above."""
+    return f"{x:,.0f}" if x >= 1000 else f"{x:.3g}"

@@ -13,8 +13,9 @@ import numbers
 import types
 import typing
 from functools import lru_cache
+from pathlib import Path
 
-from reachconf.errors import OptionsError
+from reachconf.errors import DataError, OptionsError
 
 __all__ = ["check_field_types", "check_workers", "check_options", "describe_type", "value_has_type"]
 
@@ -120,3 +121,16 @@ def check_options(options, cls, where: str, name: str = "options"):
         raise OptionsError(f"{where}: {name} must be a {cls.__name__} (or None for the defaults), "
                            f"got {type(options).__name__}")  # fmt: skip
     return options
+
+
+def require_file(path, what: str = "file") -> None:
+    """Raise :class:`DataError` naming ``path`` unless it is a regular file: no such file, a folder, or another kind
+    (a device, a pipe); ``what`` names the file in the message (``"run file"``, ``"result file"``)."""
+    path = Path(path)
+    if path.is_file():
+        return
+    if path.is_dir():
+        raise DataError(f"{path}: is a folder, expected a {what}")
+    if path.exists():
+        raise DataError(f"{path}: is not a regular file, expected a {what}")
+    raise DataError(f"{path}: no such {what}")

@@ -139,7 +139,9 @@ def cmd_reach(args, run):
     X0s = spec.initial_sets(suite) or {case.name: initial_set(spec.model, case, spec.V) for case in suite}
     out = run.outputs.folder
     # pre-flight: every case's memory before the first one starts; big tubes are streamed
-    plan = {case.name: reach_plan(spec.model, spec.reach_options, case, STREAM_TUBE_BYTES) for case in suite}
+    # streamed: when the tube would not fit in memory, or when a time limit may stop the case early
+    plan = {case.name: reach_plan(spec.model, spec.reach_options, case, STREAM_TUBE_BYTES) or args.time_limit is not None
+            for case in suite}  # fmt: skip
     results = run.partial = {}
     cases = {case.name: case for case in suite}
 
@@ -260,34 +262,6 @@ def cmd_synth(args, run):
     return EXIT_UNDECIDED if res.verdict is Verdict.UNDECIDED else EXIT_OK
 
 
-def cmd_plot(args, run):
-    """``reachconf plot FILE``: draw a saved result (tube ``.npz`` or result ``.json``)."""
-    import inspect
-
-    import numpy as np
-
-    from reachconf.drawable import load_drawable
-
-    path = Path(args.result)
-    if not path.is_file():
-        raise DataError(f"{path}: no such result file")
-    out = run.outputs.folder or path.parent
-    result = load_drawable(path)
-    kwargs = {}
-    if args.dims:
-        if "dims" not in inspect.signature(result.plot).parameters:
-            raise DataError(f"{path}: --dims applies to tubes and reachset results, not to a {type(result).__name__}")
-        kwargs["dims"] = tuple(int(d) if d.isdigit() else d for d in args.dims)
-    try:
-        ax = np.atleast_1d(result.plot(**kwargs))[0]
-    except (ValueError, IndexError, KeyError, TypeError) as exc:  # a loaded file whose parts do not fit together
-        raise DataError(f"{path}: cannot be drawn ({type(exc).__name__}: {exc})") from None
-    target = out / (path.stem + ".png")
-    _savefig(ax.figure, target)
-    print(f"wrote {target}")
-    return EXIT_OK
-
-
 def cmd_diagnose(args, run):
     """``reachconf diagnose RUN.toml --json report.json --out DIR``: the sim-to-real gap diagnosis."""
     from reachconf.diagnose.pipeline import diagnose
@@ -328,7 +302,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "4 no worker left on the Dask cluster, 130 interrupted")  # fmt: skip
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    def common(sp, run=True, pool=True, out_required=False):
+    def common(sp, run=True, pool=True, out_required=False, time_limit=False):
         if run:
             sp.add_argument("run", help="TOML run file (model, suite, sets, options)")
             sp.add_argument("--case", action="append", help="only this test case (repeatable)")
@@ -337,8 +311,11 @@ def build_parser() -> argparse.ArgumentParser:
                         + (" (required)" if out_required else ""))  # fmt: skip
         if pool:  # (diagnose adds its own --workers: forked fit processes, no Dask scheduler)
             add_pool_options(sp, commands.positive_int)
-        sp.add_argument("--time-limit", type=positive_seconds, default=None, dest="time_limit",
-                        help="seconds per case and kind; a run projected to take longer stops after its first part")  # fmt: skip
+        if time_limit:  # (only reach and conform can stop a case early)
+            sp.add_argument("--time-limit", type=positive_seconds, default=None, dest="time_limit",
+                            help="seconds per case and kind; a case projected to take longer stops after its first "
+                                 "part (reach: the tube is then streamed, every step's bounds and at most 2000 "
+                                 "sets kept)")  # fmt: skip
         if run and pool:
             sp.add_argument("--segment-length", type=positive_seconds, default=None, dest="segment_length",
                             help="check consecutive segments of this many seconds of each case, each from its "
@@ -351,10 +328,10 @@ def build_parser() -> argparse.ArgumentParser:
     common(sp, run=False)
     sp.set_defaults(fn=cmd_demo)
     sp = sub.add_parser("reach", help="reach tubes per test case (npz + X-Y PNG)")
-    common(sp)
+    common(sp, time_limit=True)
     sp.set_defaults(fn=cmd_reach)
     sp = sub.add_parser("conform", help="trace and/or reachset conformance per test case")
-    common(sp)
+    common(sp, time_limit=True)
     sp.add_argument("--kind", choices=("trace", "reachset", "both"), default="both")
     sp.set_defaults(fn=cmd_conform)
     sp = sub.add_parser("synth", help="minimal disturbance set: steps 1-3 and the merge (Table 6)")
@@ -371,8 +348,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("plot", help="plot a result (tube .npz; conform, synthesis, Pareto or diagnosis JSON)")
     sp.add_argument("result")
     sp.add_argument("--out", help="folder for the PNG (default: next to the result)")
-    sp.add_argument("--dims", nargs=2, help="two states of a tube (names or indices) or outputs of a reachset result")
-    sp.set_defaults(fn=cmd_plot, json=None)
+    sp.add_argument("--dims", nargs=2, help="two states of a tube (names or indices) or two outputs of a saved ReachsetResult")
+    sp.set_defaults(fn=lambda args, run: commands.cmd_plot(args, run, _savefig), json=None)
     return p
 
 

@@ -1,4 +1,4 @@
-"""Command-line commands of the scale-out: ``reachconf pareto`` and ``reachconf warmup``.
+"""Command-line commands of the scale-out, ``reachconf pareto`` and ``reachconf warmup``, and ``reachconf plot``.
 
 ``reachconf pareto RUN.toml --out DIR [--workers N | --scheduler ADDR]``
 samples the Pareto front of conformant disturbance boxes
@@ -7,7 +7,7 @@ and ``front.png`` into ``DIR``.  It starts from the run file's ``sets.W``;
 without one, the synthesis runs first (on the same workers) and the front
 starts from the smallest box holding every group's ``W_RC,Mnvr`` (also saved,
 as ``synthesis.json``).  Every check of every case is a task of the run's one
-pool.
+pool.  ``reachconf plot FILE`` draws a saved result.
 
 ``reachconf warmup MODEL|RUN.toml ... [--scheduler ADDR]`` builds and compiles
 what runs of the models need, here and on every worker of a Dask cluster
@@ -98,6 +98,36 @@ def cmd_warmup(args, run):
 
 #: more bisection steps than this cannot change a float64 bound (2**-60 of the range)
 MAX_BISECTION_STEPS = 60
+
+
+def cmd_plot(args, run, savefig):
+    """``reachconf plot FILE``: draw a saved result (tube ``.npz`` or result ``.json``)."""
+    import inspect
+    from pathlib import Path
+
+    import numpy as np
+
+    from reachconf.checks import require_file
+    from reachconf.drawable import load_drawable
+
+    path = Path(args.result)
+    require_file(path, "result file")
+    out = run.outputs.folder or path.parent
+    result = load_drawable(path)
+    kwargs = {}
+    if args.dims:
+        if "dims" not in inspect.signature(result.plot).parameters:
+            raise DataError(f"{path}: --dims applies to a tube (<case>_tube.npz of reachconf reach) or a saved "
+                            f"ReachsetResult, not to a {type(result).__name__}, which holds no sets to project")
+        kwargs["dims"] = tuple(int(d) if d.isdigit() else d for d in args.dims)
+    try:
+        ax = np.atleast_1d(result.plot(**kwargs))[0]
+    except (ValueError, IndexError, KeyError, TypeError, AttributeError) as exc:  # parts that do not fit together
+        raise DataError(f"{path}: cannot be drawn ({type(exc).__name__}: {exc})") from None
+    target = out / (path.stem + ".png")
+    savefig(ax.figure, target)
+    print(f"wrote {target}")
+    return 0
 
 
 def bisection_steps(text):

@@ -17,13 +17,15 @@ def plot_tube(tube, dims=None, ax=None, color="C0", alpha=0.35, outline=True, la
     """Draw a :class:`~reachconf.ReachTube` projected on two states, and measured points on top.
 
     Time-interval sets are filled polygons (one ``PolyCollection``), time-point
-    sets are outlined.
+    sets are outlined.  One state (``dims`` a single name or index, or a
+    one-state model's tube by default) is drawn against time: each
+    time-interval set's bounds over its step.
 
     Parameters
     ----------
     tube : ReachTube
-    dims : pair of str or int, optional
-        States to draw (default: the first two).
+    dims : pair of str or int, or one str or int, optional
+        States to draw (default: the first two; the only one of a one-state tube).
     ax : matplotlib Axes, optional
     color, alpha, outline, label
         Style of the tube.
@@ -37,9 +39,12 @@ def plot_tube(tube, dims=None, ax=None, color="C0", alpha=0.35, outline=True, la
     import matplotlib.pyplot as plt
     from matplotlib.collections import PolyCollection
 
+    if isinstance(dims, (str, int, np.integer)) or (dims is None and len(tube.state_names) == 1):
+        return _plot_over_time(tube, tube.dim_indices((0,) if dims is None else (dims,))[0], ax, color, alpha,
+                               label, measured)  # fmt: skip
     idx = tube.dim_indices(tuple(tube.state_names[:2]) if dims is None else dims)
     if len(idx) != 2:
-        raise SetError(f"plot needs two dimensions, got {dims!r}")
+        raise SetError(f"plot needs two dimensions (or one, drawn against time), got {dims!r}")
     if ax is None:
         _, ax = plt.subplots(figsize=(8, 5))
     polys = _polygons(tube.time_interval_sets, idx)
@@ -57,6 +62,35 @@ def plot_tube(tube, dims=None, ax=None, color="C0", alpha=0.35, outline=True, la
     ax.set_ylabel(names[1])
     if measured is not None:
         plot_measured(ax, measured, names)
+    return ax
+
+
+def _plot_over_time(tube, i, ax, color, alpha, label, measured):
+    """One state against time: a rectangle per time-interval set (its bounds over its step), measurements as dots."""
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(8, 5))
+    spans = np.asarray(tube.time_intervals, dtype=float).reshape(-1, 2)
+    lo = np.array([s.interval().lo[i] for s in tube.time_interval_sets])
+    hi = np.array([s.interval().hi[i] for s in tube.time_interval_sets])
+    rects = [np.array([[a, l], [b, l], [b, h], [a, h]]) for (a, b), l, h in zip(spans, lo, hi)]
+    ax.add_collection(PolyCollection(rects, facecolors=color, edgecolors="none", alpha=alpha, label=label))
+    pad_t = 0.02 * max(spans[-1, 1] - spans[0, 0], 1e-9)
+    pad_y = 0.05 * max(hi.max() - lo.min(), 1e-9)
+    ax.set_xlim(spans[0, 0] - pad_t, spans[-1, 1] + pad_t)
+    ax.set_ylim(lo.min() - pad_y, hi.max() + pad_y)
+    name = tube.state_names[i]
+    ax.set_xlabel("t")
+    ax.set_ylabel(name)
+    if measured is not None:
+        items = measured if isinstance(measured, (list, tuple)) else [measured]
+        # a case's clock is moved to the tube's (a reach runs from the case's first sample, often from t = 0)
+        points = [np.column_stack([c.t - c.t[0] + spans[0, 0], c.signal(name)]) for c in items
+                  if hasattr(c, "signals") and name in c.signals]  # fmt: skip
+        if points:
+            plot_measured(ax, points, ("t", name))
     return ax
 
 

@@ -51,7 +51,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from reachconf.checks import check_workers
+from reachconf.checks import check_workers, require_file
 from reachconf.conformance.alpha import missing_initial_sets
 from reachconf.conformance.synthesis import SynthesisOptions
 from reachconf.conformance.trace import METHODS, TraceOptions
@@ -219,8 +219,7 @@ def load_run(path) -> RunSpec:
     if not isinstance(path, (str, os.PathLike)) or not str(path):
         raise DataError(f"load_run: path must be a run-file path (str or pathlib.Path), got {path!r}")
     path = Path(path)
-    if not path.is_file():
-        raise DataError(f"{path}: run file does not exist")
+    require_file(path, "run file")
     try:
         raw = tomllib.loads(path.read_text(encoding="utf-8-sig"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:

@@ -406,9 +406,10 @@ class ReachTube:
     @classmethod
     def load(cls, path) -> "ReachTube":
         """Read a tube written by :meth:`save` (without the model)."""
+        from reachconf.checks import require_file
+
         path = Path(path)
-        if not path.exists():
-            raise DataError(f"{path}: no such file")
+        require_file(path, "tube file")
         try:
             data = np.load(path, allow_pickle=False)
             sets = {}

@@ -10,10 +10,11 @@ from __future__ import annotations
 
 from reachconf.conformance.reachset import reachset_conformance
 from reachconf.errors import OptionsError
+from reachconf.sets.convert import as_zonotope
 from reachconf.sets.core import Interval
 from reachconf.verdict import Verdict
 
-__all__ = ["alpha_search", "scaled_box", "reachset_check"]
+__all__ = ["alpha_search", "scaled_box", "reachset_check", "check_initial_sets"]
 
 
 def scaled_box(c, g, alpha) -> Interval:
@@ -98,6 +99,21 @@ def case_initial_set(options, case):
                                f"every case checked)")  # fmt: skip
         return X0[case.name]
     return X0
+
+
+def check_initial_sets(X0, cases, n: int, where: str) -> None:
+    """Raise before any work if ``SynthesisOptions.X0`` lacks a case's set or has a set of another dimension.
+
+    ``X0``: None, one Interval/Zonotope, or a mapping of case names to them; ``n``: the model's state dimension.
+    """
+    missing = missing_initial_sets(X0, cases)
+    if missing:
+        raise OptionsError(f"{where}: SynthesisOptions.X0 has no initial set for case(s) {missing} (a mapping "
+                           f"needs every case of the suite)")  # fmt: skip
+    sets = X0.items() if isinstance(X0, dict) else ([] if X0 is None else [(None, X0)])
+    for name, S in sets:
+        label = "SynthesisOptions.X0" + ("" if name is None else f"[{name!r}]")
+        as_zonotope(S, n, f"{where}: {label}")
 
 
 def missing_initial_sets(X0, cases) -> str:

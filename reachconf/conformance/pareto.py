@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from reachconf.checks import check_options, check_workers
-from reachconf.conformance.alpha import reachset_check
+from reachconf.conformance.alpha import check_initial_sets, reachset_check
 from reachconf.conformance.synthesis import SynthesisOptions
 from reachconf.conformance.trace import trace_conformance
 from reachconf.errors import ConformanceError, OptionsError
@@ -152,21 +152,45 @@ def pareto_front(model, suite, V, W_start, check: str = "reachset", iterations: 
     workers = check_workers(workers, "pareto_front: workers")
     if check not in ("reachset", "trace"):
         raise OptionsError(f"check must be 'reachset' or 'trace', got {check!r}")
-    if int(iterations) != iterations or iterations < 1:
-        raise OptionsError(f"iterations must be a positive integer, got {iterations!r}")
+    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
+        raise OptionsError(f"pareto_front: iterations must be a positive integer, got {iterations!r}")
     Vb = as_box(V, model.p, "V", exact=check == "trace")
     Vbox = Interval(Vb.lo, Vb.hi)
     Wb = as_box(W_start, model.q, "W_start")
     W_start = Interval(Wb.lo, Wb.hi)
     cases = suite_cases(suite, "pareto_front")
+    check_initial_sets(options.X0, cases, model.n, "pareto_front")
     q = model.q
+    if q == 0:
+        raise OptionsError(f"pareto_front: model {model.name!r} has no disturbance inputs w: there is no front of W")
     if orders is None:
         orders = [tuple((k + i) % q for i in range(q)) for k in range(q)]
-    orders = [tuple(int(ch) for ch in o) for o in orders]
-    if any(not 0 <= ch < q for o in orders for ch in o):
-        raise OptionsError(f"orders must list channels 0..{q - 1}, got {orders!r}")
+    orders = _channel_orders(orders, q)
     with use_pool(pool, workers, scheduler) as p:
         return _front(model, cases, Vbox, W_start, check, int(iterations), orders, options, p, progress)
+
+
+def _channel_orders(orders, q: int) -> list:
+    """``orders`` checked: each a sequence of distinct channel indices ``0..q-1`` (a channel repeated would be
+    shrunk twice and another never)."""
+    bad = OptionsError(f"pareto_front: orders must be a list of sequences of distinct channels 0..{q - 1}, got "
+                       f"{orders!r}")  # fmt: skip
+    if isinstance(orders, (str, bytes)) or not hasattr(orders, "__iter__"):
+        raise bad
+    out = []
+    for o in orders:
+        if isinstance(o, (str, bytes)) or not hasattr(o, "__iter__"):
+            raise bad
+        chans = list(o)
+        if any(isinstance(ch, bool) or not isinstance(ch, (int, np.integer)) for ch in chans):
+            raise bad
+        chans = [int(ch) for ch in chans]
+        if not chans or any(not 0 <= ch < q for ch in chans) or len(set(chans)) != len(chans):
+            raise bad
+        out.append(tuple(chans))
+    if not out:
+        raise bad
+    return out
 
 
 def _front(model, cases, Vbox, W_start, check, iterations, orders, options, pool, progress):

@@ -21,7 +21,7 @@ from reachconf.reach import ReachStopped, integration_steps, reach_run
 from reachconf.reach_options import AdaptiveReach, ReachOptions
 from reachconf.reach_stream import streamed_bytes_per_step
 from reachconf.sets.containment import contains_points_lp
-from reachconf.sets.convert import as_box
+from reachconf.sets.convert import as_box, as_zonotope
 from reachconf.sets.core import Interval, Zonotope
 from reachconf.sets.union import SetUnion
 from reachconf.tube import ReachTube
@@ -290,6 +290,7 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
     name = getattr(case, "name", "case")
     if X0 is None:
         X0 = initial_set(model, case, V)
+    X0 = as_zonotope(X0, model.n, "X0")  # a wrong size is an error before any work, never a verdict
     if progress is not None:
         options = replace(options, progress=progress)
     Vb = as_box(V, model.p, "V")

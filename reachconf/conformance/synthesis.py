@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from reachconf.checks import check_field_types, check_options, check_workers
-from reachconf.conformance.alpha import alpha_search, missing_initial_sets, reachset_check
+from reachconf.conformance.alpha import alpha_search, check_initial_sets, reachset_check
 from reachconf.conformance.bounds import minimize_box, step1_trace
 from reachconf.conformance.merge import merge_groups
 from reachconf.conformance.trace import TraceOptions
@@ -416,10 +416,10 @@ def synthesize_W(model, suite, V, options: SynthesisOptions | None = None, worke
     options = check_options(options, SynthesisOptions, "synthesize_W")
     workers = check_workers(workers, "synthesize_W: workers")
     cases = suite_cases(suite, "synthesize_W")
-    missing = missing_initial_sets(options.X0, cases)
-    if missing:
-        raise OptionsError(f"synthesize_W: SynthesisOptions.X0 has no initial set for case(s) {missing} (a mapping "
-                           f"needs every case of the suite)")  # fmt: skip
+    check_initial_sets(options.X0, cases, model.n, "synthesize_W")
+    if model.q == 0:
+        raise OptionsError(f"synthesize_W: model {model.name!r} has no disturbance inputs w, so there is no W to "
+                           f"synthesize (check it with reachset_conformance or trace_conformance)")  # fmt: skip
     t_all = time.perf_counter()
     Vb = as_box(V, model.p, "V", exact=True)
     Vbox = Interval(Vb.lo, Vb.hi)

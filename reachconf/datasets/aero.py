@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from reachconf.checks import require_file
 from reachconf.errors import DataError
 
 __all__ = ["PerformanceTable", "AeroFit", "read_performance_table", "fit_aero", "operating_region",
@@ -73,8 +74,7 @@ def _numbers(path, lineno, line):
 def read_performance_table(path) -> PerformanceTable:
     """Read a ROSCO-style ``Cp_Ct_Cq`` text file (DataError naming the file and the problem)."""
     path = Path(path)
-    if not path.is_file():
-        raise DataError(f"{path}: no such file")
+    require_file(path)
     lines = path.read_text(encoding="latin-1").splitlines()
     vectors, blocks, current = {}, {}, None
     for no, line in enumerate(lines, 1):

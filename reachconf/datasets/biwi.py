@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from reachconf.checks import require_file
 from reachconf.errors import DataError
 
 __all__ = ["Track", "read_obsmat", "read_sequence", "PredictionCases", "prediction_cases", "ANNOTATION_DT"]
@@ -39,8 +40,7 @@ class Track:
 def read_obsmat(path, sequence=None) -> list[Track]:
     """Read one ``obsmat.txt`` into tracks (DataError naming file, row and column on bad input)."""
     path = Path(path)
-    if not path.is_file():
-        raise DataError(f"{path}: no such file")
+    require_file(path)
     sequence = sequence or path.parent.name
     step = FRAMES_PER_STEP.get(sequence)
     rows = []

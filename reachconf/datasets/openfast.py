@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from reachconf.checks import require_file
 from reachconf.errors import DataError
 
 __all__ = ["OpenFASTOutput", "read_outb", "read_csv", "read_output", "FILE_IDS"]
@@ -101,8 +102,7 @@ class _Reader:
 def read_outb(path) -> OpenFASTOutput:
     """Read an OpenFAST binary output file (``.outb``, FileID 1-4)."""
     path = Path(path)
-    if not path.is_file():
-        raise DataError(f"{path}: no such file")
+    require_file(path)
     r = _Reader(path, path.read_bytes())
     file_id = int(r.take("<i2", 1, "FileID")[0])
     if file_id not in FILE_IDS:
@@ -146,8 +146,7 @@ def read_outb(path) -> OpenFASTOutput:
 def read_csv(path) -> OpenFASTOutput:
     """Read the data folder's CSV exports (``.csv`` or ``.csv.gz``): ``# comment``, names, units, rows."""
     path = Path(path)
-    if not path.is_file():
-        raise DataError(f"{path}: no such file")
+    require_file(path)
     opener = gzip.open if path.suffix == ".gz" else open
     try:
         with opener(path, "rt", encoding="utf-8") as fh:

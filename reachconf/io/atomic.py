@@ -78,9 +78,13 @@ def atomic_write(path, data: bytes | str, overwrite: bool = True) -> Path:
     path = given = Path(path)
     if isinstance(data, str):
         data = data.encode("utf-8")
-    if path.is_dir():
+    try:
+        is_dir, is_link = path.is_dir(), path.is_symlink()
+    except OSError as exc:  # e.g. a name longer than the file system allows
+        raise OutputError(f"{str(path)[:300]}: cannot write: {os_reason(exc)}") from None
+    if is_dir:
         raise OutputError(f"{path}: is a folder, expected a file name")
-    if path.is_symlink():  # write the file it points to (the link stays)
+    if is_link:  # write the file it points to (the link stays)
         path = Path(os.path.realpath(path))
     if path.exists() and not path.is_file():  # a device or pipe (/dev/stdout): stream into it, never replace it
         try:

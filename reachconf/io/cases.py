@@ -222,9 +222,9 @@ class TestCase:
 
     def decimate(self, k: int) -> "TestCase":
         """Every ``k``-th sample (inputs stay piecewise constant on the coarser grid)."""
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+            raise DataError(f"test case {self.name!r}: decimation factor must be an integer >= 1, got {k!r}")
         k = int(k)
-        if k < 1:
-            raise DataError(f"decimation factor must be >= 1, got {k}")
         if k == 1:
             return self
         sl = slice(None, None, k)
@@ -402,8 +402,9 @@ class TestSuite:
         """Every case cut into segments of ``length`` seconds (:meth:`TestCase.segments`), as a suite."""
         segments = [s for c in self.cases for s in c.segments(length, partial, step)]
         if not segments:
-            raise DataError(f"test suite {self.name!r}: every case is shorter than the segment length {length!r} s "
-                            f"(partial=False keeps no segment)")  # fmt: skip
+            why = "every case is shorter than the segment length" if not partial else "no segment of two samples at"
+            raise DataError(f"test suite {self.name!r}: {why} {length!r} s" + (" (partial=False keeps no segment)"
+                                                                               if not partial else ""))  # fmt: skip
         return TestSuite(segments, name=self.name)
 
     def map(self, fn) -> "TestSuite":

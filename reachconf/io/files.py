@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from reachconf.checks import require_file
 from reachconf.errors import DataError, ModelError
 from reachconf.io.atomic import atomic_write
 from reachconf.io.cases import TestCase, TestSuite, check_signals
@@ -104,8 +105,7 @@ def load_case(path, inputs=None, outputs=None, extras=None, group="default", ren
         Supplies ``inputs`` and ``outputs``.
     """
     path = _path_argument(path, "load_case: path")
-    if not path.is_file():
-        raise DataError(f"{path}: no such file")
+    require_file(path)
     suffix = path.suffix.lower()
     rows = None  # file line of each sample (CSV)
     if suffix == ".csv":
@@ -162,7 +162,8 @@ def load_suite(path, model=None) -> TestSuite:
     """
     folder = _path_argument(path, "load_suite: path")
     if not folder.is_dir():
-        raise DataError(f"{folder}: test suite folder does not exist")
+        raise DataError(f"{folder}: " + ("is a file, expected a test suite folder" if folder.exists()
+                                         else "test suite folder does not exist"))  # fmt: skip
     cfg = read_suite_toml(folder)
     try:
         files = sorted(p for p in folder.iterdir()
@@ -259,6 +260,10 @@ def save_suite(suite: TestSuite, path, fmt: str = "csv", replace: bool = False) 
     for case in suite:
         if case.input_names != first.input_names or case.output_names != first.output_names:
             raise DataError(f"suite {suite.name!r}: case {case.name!r} has other signals than {first.name!r}")
+        if set(case.extras) != set(first.extras):  # suite.toml lists one set of extra columns for every file
+            raise DataError(f"suite {suite.name!r}: case {case.name!r} has the extra signals {sorted(case.extras)}, "
+                            f"case {first.name!r} {sorted(first.extras)}; a suite folder needs the same in every "
+                            f"case (nothing was written)")  # fmt: skip
     names = {f"{case.name}.{fmt}" for case in suite}
     stale = sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")
                    and p.suffix.lower() in (".csv", ".npz") and p.name not in names) if folder.is_dir() else []  # fmt: skip

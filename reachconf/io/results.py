@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from reachconf.checks import require_file
 from reachconf.errors import DataError
 from reachconf.io.atomic import atomic_write
 from reachconf.io.jsonfile import json_text
@@ -34,8 +35,7 @@ def jsonable(value):
 def read_json(path) -> dict:
     """The JSON object in ``path`` (:class:`DataError` naming the file if it is missing or not a JSON object)."""
     path = Path(path)
-    if not path.is_file():
-        raise DataError(f"{path}: no such result file")
+    require_file(path, "result file")
     try:
         data = json.loads(path.read_bytes().decode("utf-8-sig"))
     except UnicodeDecodeError:
@@ -83,5 +83,5 @@ class JsonResult:
             raise DataError(f"{path}: holds a {kind}, not a {cls.__name__}")
         try:
             return cls.from_dict(data)
-        except (KeyError, TypeError, ValueError, IndexError) as exc:
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:  # a part of another shape
             raise DataError(f"{path}: not a {cls.__name__} file ({type(exc).__name__}: {exc})") from None

@@ -27,6 +27,10 @@ def case_segments(case, length, partial: bool = True, step=None) -> list:
     tol = 1e-9 * max(1.0, length) + stamp_rounding(t[0], t[-1])
     if t[-1] - t[0] <= length + tol:  # one segment: the case itself (dropped if shorter and not partial)
         return [case] if partial or t[-1] - t[0] >= length - tol else []
+    dt = float(np.min(np.diff(t)))
+    if length < dt - tol:
+        raise DataError(f"test case {case.name!r}: segment length {length:g} s is shorter than the sampling "
+                        f"interval ({dt:g} s): a segment needs at least two samples")  # fmt: skip
     out = []
     for a in t[0] + step * np.arange(int(np.floor((t[-1] - t[0] + tol) / step)) + 1):
         keep = np.flatnonzero((t >= a - tol) & (t <= a + length + tol))

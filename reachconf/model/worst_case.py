@@ -70,8 +70,9 @@ def worst_case(model, X0, times, value, *, inputs=None, W=None, at: int = -1, it
         Initial states (its interval hull is searched).
     times : array_like (K,)
         Sample times; the disturbance is constant on each interval between them.
-    value : callable or array_like (n,)
-        ``value(x, u) -> float`` of the state and the input at ``times[at]``, or weights ``c`` for ``c . x``.
+    value : callable, array_like (n,) or str
+        ``value(x, u) -> float`` of the state and the input at ``times[at]``, weights ``c`` for ``c . x``,
+        or a state's name (``"-name"``: its smallest value, negated).
         Its gradient is taken by finite differences.
     inputs : array_like (K, m) or (K - 1, m), optional
         Known inputs (as for :func:`reachconf.simulate`).
@@ -106,10 +107,20 @@ def worst_case(model, X0, times, value, *, inputs=None, W=None, at: int = -1, it
     n, m, q = model.n, model.m, model.q
     box0 = as_box(X0, n, "X0")
     Wb = as_box(W, q, "W")
+    if isinstance(value, str):  # a state by name ("-name": its smallest value)
+        name = value[1:] if value.startswith("-") else value
+        if name not in model.state_names:
+            raise DataError(f"worst_case: value {value!r} is not a state of model {model.name!r}; states are "
+                            f"{list(model.state_names)} (or pass a callable or {n} weights)")  # fmt: skip
+        value = np.eye(n)[list(model.state_names).index(name)] * (-1.0 if value.startswith("-") else 1.0)
     if callable(value):
         fn = value
     else:
-        weights = np.asarray(value, dtype=float).reshape(-1)
+        try:
+            weights = np.asarray(value, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise DataError(f"worst_case: value must be a callable, {n} weights or a state's name, got "
+                            f"{value!r}"[:200]) from None  # fmt: skip
         if weights.size != n or not np.all(np.isfinite(weights)):
             raise DataError(f"worst_case: value must be a callable or {n} finite weights, got {np.shape(value)}")
         fn = lambda x, u: weights @ x  # noqa: E731

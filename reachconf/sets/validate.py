@@ -23,9 +23,12 @@ def as_vector(value, name: str, allow_empty: bool = False) -> np.ndarray:
         Accept a vector of length 0.
     """
     try:
+        kind = np.asarray(value).dtype.kind
         arr = np.array(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise SetError(f"{name} must be numeric, got {value!r}") from None
+        raise SetError(f"{name} must be numeric, got {value!r}"[:200]) from None
+    if kind not in "biuf":  # None (read as NaN), text, objects
+        raise SetError(f"{name} must be numeric, got {value!r}"[:200])
     if sum(d > 1 for d in arr.shape) > 1:  # a row or column vector is a vector; a matrix is not
         raise SetError(f"{name} must be a vector, got an array of shape {arr.shape}")
     arr = arr.reshape(-1)

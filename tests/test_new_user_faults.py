@@ -1,0 +1,225 @@
+"""Faults a new user's first session found (2 Dec): each raised a bare error, gave a wrong answer or a wrong message.
+
+One test per finding; each fails on the code before the fix (noted in its docstring).
+"""
+
+import json
+import sys
+
+import numpy as np
+import pytest
+
+import reachconf as rc
+from reachconf import cli
+from reachconf.budget import TimeBudget
+from reachconf.demo import demo_run_file
+from reachconf.errors import OutputError
+from reachconf.io import load_case
+from reachconf.runfile import load_run
+
+
+@pytest.fixture(scope="module")
+def demo():
+    spec = load_run(demo_run_file())
+    return spec, spec.suite()
+
+
+def decay_model():
+    return rc.Model(name="decay_one_state", states=("th",), disturbances=("w",), params={"a": 1.0},
+                    dynamics=lambda s: [-s.a * s.th + s.w])  # fmt: skip
+
+
+def decay_case(name="c0", x0=1.0, seed=0, duration=1.0):
+    model = decay_model()
+    t = np.round(np.arange(0.0, duration + 1e-9, 0.05), 10)
+    rng = np.random.default_rng(seed)
+    X = rc.simulate(model, [x0], t, disturbances=rng.uniform(-0.05, 0.05, size=(t.size, 1)))
+    return rc.TestCase(name, "g", t, np.zeros((t.size, 0)), X, (), ("th",))
+
+
+@pytest.fixture()
+def decay_run(tmp_path, monkeypatch):
+    """A run file of the one-state model (a module of the test's own) and a suite of a short and a long case."""
+    (tmp_path / "decay_mod.py").write_text(
+        "import reachconf as rc\n"
+        "def make():\n"
+        "    return rc.Model(name='decay_one_state', states=('th',), disturbances=('w',), params={'a': 1.0},\n"
+        "                    dynamics=lambda s: [-s.a * s.th + s.w])\n")  # fmt: skip
+    monkeypatch.syspath_prepend(str(tmp_path))
+    sys.modules.pop("decay_mod", None)
+    suite = rc.TestSuite([decay_case("c0"), decay_case("long", 1.1, 1, duration=60.0)], name="decay")
+    rc.save_suite(suite, tmp_path / "suite")
+    run = tmp_path / "run.toml"
+    run.write_text('model = "decay_mod:make"\nsuite = "suite"\n[sets]\nW = [[-0.05, 0.05]]\nV = [[-0.01, 0.01]]\n')
+    return run
+
+
+def test_an_initial_set_of_the_wrong_size_is_an_error_not_a_verdict(demo):
+    """Was: reachset_conformance(keep_tube=False) and synthesize_W answered "not conformant at t = 0"."""
+    spec, suite = demo
+    bad = rc.Interval([0.0], [1.0])
+    for keep in (True, False):
+        with pytest.raises(rc.SetArgumentError, match="X0 has dimension 1, the model needs 6"):
+            rc.reachset_conformance(spec.model, suite[0], spec.W, spec.V, X0=bad, keep_tube=keep)
+    with pytest.raises(rc.SetArgumentError, match="X0 must be a reachconf Interval or Zonotope"):
+        rc.reachset_conformance(spec.model, suite[0], spec.W, spec.V, X0=[[0, 1]] * 6, keep_tube=False)
+    with pytest.raises(rc.SetArgumentError, match=r"synthesize_W: SynthesisOptions.X0 has dimension 1"):
+        rc.synthesize_W(spec.model, suite, spec.V, options=rc.SynthesisOptions(X0=bad))
+    per_case = {c.name: bad for c in suite}
+    with pytest.raises(rc.SetArgumentError, match=r"SynthesisOptions.X0\['lane_change_01'\] has dimension 1"):
+        rc.synthesize_W(spec.model, suite, spec.V, options=rc.SynthesisOptions(X0=per_case))
+    with pytest.raises(rc.SetArgumentError, match="pareto_front: SynthesisOptions.X0 has dimension 1"):
+        rc.pareto_front(spec.model, suite, spec.V, spec.W, options=rc.SynthesisOptions(X0=bad))
+
+
+def test_a_model_without_disturbances_has_no_W_to_synthesize():
+    """Was: a result with an empty table that could be neither reloaded nor plotted."""
+    model = rc.Model(name="decay_no_w", states=("th",), dynamics=lambda s: [-s.th])
+    t = np.linspace(0.0, 1.0, 11)
+    case = rc.TestCase("c", "g", t, np.zeros((11, 0)), np.exp(-t)[:, None], (), ("th",))
+    V = rc.Interval([-0.01], [0.01])
+    with pytest.raises(rc.OptionsError, match="has no disturbance inputs w"):
+        rc.synthesize_W(model, rc.TestSuite([case]), V)
+    with pytest.raises(rc.OptionsError, match="has no disturbance inputs w"):
+        rc.pareto_front(model, rc.TestSuite([case]), V, rc.Interval(np.zeros(0), np.zeros(0)))
+
+
+def test_pareto_orders_and_iterations_are_checked(demo):
+    """Was: a repeated channel accepted (another never explored); None, 'a', 'abc' gave bare Type/ValueErrors."""
+    spec, suite = demo
+    for orders in ([[0, 0, 1, 2, 3, 4]], "abc", [[0, 9]], [[]], [[0.5]], 3):
+        with pytest.raises(rc.OptionsError, match="orders must be a list of sequences of distinct channels"):
+            rc.pareto_front(spec.model, suite, spec.V, spec.W, orders=orders)
+    for it in (None, "a", 0, 2.5, True):
+        with pytest.raises(rc.OptionsError, match="iterations must be a positive integer"):
+            rc.pareto_front(spec.model, suite, spec.V, spec.W, iterations=it)
+
+
+def test_one_state_tube_is_drawn_against_time(tmp_path):
+    """Was: "plot needs two dimensions" from ReachTube.plot and from `reachconf reach` (which stopped, exit 2)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    model = decay_model()
+    tube = rc.reach(model, rc.Interval([0.9], [1.1]), 1.0, W=rc.Interval([-0.05], [0.05]))
+    ax = tube.plot(measured=decay_case())
+    assert ax.get_xlabel() == "t" and ax.get_ylabel() == "th"
+    lo, hi = ax.get_ylim()
+    b = tube.bounds()
+    assert lo <= b[:, 0, 0].min() and hi >= b[:, 1, 0].max()
+    assert ax.lines and ax.lines[0].get_xydata().shape == (21, 2)  # the measured samples, against time
+    vdp = rc.reach(rc.models.vanderpol(), rc.Interval([1.4, 2.3], [1.5, 2.4]), 0.1)
+    assert vdp.plot(dims="y").get_xlabel() == "t"  # one state of a larger tube, by name
+    assert vdp.plot().get_xlabel() == "x"  # two states: unchanged
+
+
+def test_reach_command_on_a_one_state_model(decay_run, capsys):
+    out = decay_run.parent / "out"
+    assert cli.main(["reach", str(decay_run), "--case", "c0", "--out", str(out)]) == 0, capsys.readouterr().err
+    res = json.loads((out / "reach.json").read_text())
+    assert list(res) == ["c0"] and not res["c0"]["failed"] and (out / "c0_tube.png").stat().st_size > 0
+
+
+def test_time_limit_only_where_it_acts(demo, tmp_path, capsys):
+    """Was: accepted and ignored by synth, pareto, diagnose; conform's message rounded 0.4 s to "0 s"."""
+    for command in ("synth", "pareto", "diagnose"):
+        status = cli.main([command, str(demo_run_file()), "--out", str(tmp_path / command), "--time-limit", "1"])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert status == 2 and len(err) == 1 and "--time-limit" in err[0], (command, err)
+    budget = TimeBudget("a run", 1e-9)
+    budget.check(200, 200)  # all the work done: kept, whatever it took
+    budget = TimeBudget("a run", 1e-9)
+    with pytest.raises(rc.ResourceError, match=r"exceeds the time limit of 1e-09 s"):
+        budget.check(1, 200)
+
+
+def test_reach_command_streams_under_a_time_limit(decay_run, capsys):
+    """Was: `reachconf reach --time-limit` ignored for tubes small enough to keep (the long case's 1,200 samples
+    are six chunks of the streamed adaptive reach: the limit stops it after the first)."""
+    out = decay_run.parent / "out"
+    assert cli.main(["reach", str(decay_run), "--case", "c0", "--out", str(out), "--time-limit", "1e-6"]) == 0
+    assert not json.loads((out / "reach.json").read_text())["c0"]["failed"]  # one chunk: done, kept
+    status = cli.main(["reach", str(decay_run), "--case", "long", "--out", str(out), "--time-limit", "1e-6"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1, err
+    assert "for 1,200 samples" in err[0] and "exceeds the time limit of 1e-06 s" in err[0], err
+
+
+def test_save_suite_refuses_cases_with_other_extras(tmp_path):
+    """Was: written, then load_suite failed on the case without the extra column."""
+    a, b = decay_case("a"), decay_case("b")
+    a = rc.TestCase("a", "g", a.t, a.U, a.Y, (), ("th",), extras={"e": a.t})
+    with pytest.raises(rc.DataError, match=r"case 'b' has the extra signals \[\], case 'a' \['e'\]"):
+        rc.save_suite(rc.TestSuite([a, b]), tmp_path / "d")
+    assert not (tmp_path / "d").exists()
+
+
+def test_a_damaged_result_file_is_a_data_error(demo, tmp_path, capsys):
+    """Was: AttributeError from SynthesisResult.load and a traceback with exit 1 from `reachconf plot`."""
+    spec, suite = demo
+    res = rc.synthesize_W(spec.model, rc.TestSuite([suite[0]]), spec.V,
+                          options=rc.SynthesisOptions(alpha_iterations=1, merge_iterations=1))  # fmt: skip
+    path = res.save(tmp_path / "synthesis.json")
+    d = json.loads(path.read_text())
+    d["groups"] = 5
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(d))
+    with pytest.raises(rc.DataError, match="bad.json: not a SynthesisResult file"):
+        rc.SynthesisResult.load(bad)
+    status = cli.main(["plot", str(bad)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1 and "bad.json" in err[0], err
+
+
+def test_segments_shorter_than_the_sampling_interval():
+    """Was: [] from TestCase.segments, and a message about partial=False and short cases from the suite's."""
+    case = decay_case()
+    with pytest.raises(rc.DataError, match=r"segment length 0.01 s is shorter than the sampling interval \(0.05 s\)"):
+        case.segments(0.01)
+    with pytest.raises(rc.DataError, match="shorter than the sampling interval"):
+        rc.TestSuite([case]).segments(0.01)
+    assert len(case.segments(0.05)) == 20
+
+
+def test_worst_case_takes_a_state_name(demo):
+    """Was: ValueError "could not convert string to float"."""
+    model = decay_model()
+    t = np.linspace(0.0, 1.0, 11)
+    X0, W = rc.Interval([0.9], [1.1]), rc.Interval([-0.05], [0.05])
+    top = rc.worst_case(model, X0, t, "th", W=W)
+    bottom = rc.worst_case(model, X0, t, "-th", W=W)
+    assert top.value == pytest.approx(rc.worst_case(model, X0, t, [1.0], W=W).value)
+    assert -bottom.value < top.value
+    with pytest.raises(rc.DataError, match="value 'vx' is not a state of model 'decay_one_state'"):
+        rc.worst_case(model, X0, t, "vx", W=W)
+    with pytest.raises(rc.DataError, match="value must be a callable"):
+        rc.worst_case(model, X0, t, [{"a": 1}], W=W)
+
+
+def test_file_names_too_long_and_paths_that_are_not_files(tmp_path):
+    """Was: a bare OSError for a 300-character name; "does not exist" / "no such file" for folders and devices."""
+    with pytest.raises(OutputError, match="File name too long"):
+        rc.atomic_write(tmp_path / ("z" * 300 + ".txt"), "hi")
+    with pytest.raises(rc.DataError, match="is a folder, expected a run file"):
+        load_run(tmp_path)
+    with pytest.raises(rc.DataError, match="is not a regular file, expected a run file"):
+        load_run("/dev/null")
+    with pytest.raises(rc.DataError, match="is a folder, expected a result file"):
+        rc.TraceResult.load(tmp_path)
+    with pytest.raises(rc.DataError, match="is a folder, expected a file"):
+        load_case(tmp_path)
+    (tmp_path / "f.csv").write_text("t,x\n0,1\n")
+    with pytest.raises(rc.DataError, match="is a file, expected a test suite folder"):
+        rc.load_suite(tmp_path / "f.csv")
+
+
+def test_small_argument_checks():
+    """Was: decimate(1.5) silently every sample; Interval(None, None) "contains NaN or inf"."""
+    case = decay_case()
+    for k in (1.5, "2", 0, True):
+        with pytest.raises(rc.DataError, match="decimation factor must be an integer >= 1"):
+            case.decimate(k)
+    assert case.decimate(np.int64(2)).t.size == 11
+    for lo in (None, [None], ["a"]):
+        with pytest.raises(rc.SetError, match="lo must be numeric"):
+            rc.Interval(lo, [1.0])
