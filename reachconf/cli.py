@@ -59,7 +59,8 @@ def _interrupted_at_start(signum, frame):  # pragma: no cover - exercised throug
 # Ctrl-C while Python imports numpy, scipy, numba (the first second of a run) must not print a traceback:
 # when this module is the program, that handler is installed before anything heavy is imported; main()
 # replaces it by the KeyboardInterrupt that saves partial results.
-if __name__ == "__main__" or Path(sys.argv[0] if sys.argv else "").stem == "reachconf":
+_PROGRAM = Path(sys.argv[0] if sys.argv else "")
+if __name__ == "__main__" or _PROGRAM.stem == "reachconf" or _PROGRAM.parts[-2:] == ("reachconf", "__main__.py"):
     signal.signal(signal.SIGINT, _interrupted_at_start)
 
 

@@ -223,3 +223,13 @@ def test_small_argument_checks():
     for lo in (None, [None], ["a"]):
         with pytest.raises(rc.SetError, match="lo must be numeric"):
             rc.Interval(lo, [1.0])
+
+
+def test_python_dash_m_reachconf(tmp_path):
+    """Was: "No module named reachconf.__main__"."""
+    import subprocess
+
+    run = subprocess.run([sys.executable, "-m", "reachconf", "conform", str(tmp_path / "missing.toml")],
+                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert run.returncode == 2, run.stderr
+    assert run.stderr.strip().splitlines() == [f"reachconf: error: {tmp_path / 'missing.toml'}: no such run file"]

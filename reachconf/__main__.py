@@ -1,0 +1,7 @@
+"""``python -m reachconf``: the command line, the same as the ``reachconf`` script (:func:`reachconf.cli.main`)."""
+
+import sys
+
+from reachconf.cli import main
+
+sys.exit(main())
