@@ -320,6 +320,8 @@ class ReachOptions:
         the units of ``f`` (state per unit time, as CORA's ``maxError``: the
         error enters the linearised system as an input); in other time units
         it scales with them (time in ms: a thousandth of the value in s).
+        ``"lin"`` and ``"poly"`` only: ``"adaptive"`` splits by its own error
+        budget (:class:`AdaptiveReach`) and does not read it.
     max_error_iterations : int, default 25
         Iterations of the abstraction-error fixed point before giving up.
     rounding : float, default 1e-13

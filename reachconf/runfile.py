@@ -251,6 +251,9 @@ def load_run(path) -> RunSpec:
         raise DataError(f"{path}: [sets] gives both X0 and unmeasured; give one (unmeasured: eq. 67 for the "
                         f"measured states)")  # fmt: skip
     reach_opts = _options(ReachOptions, _table(raw, "reach", str(path)), f"{path}: [reach]")
+    if isinstance(reach_opts.max_error, (list, tuple)) and len(reach_opts.max_error) not in (1, model.n):
+        raise DataError(f"{path}: [reach] max_error has {len(reach_opts.max_error)} entries, model {model.name!r} has "
+                        f"{model.n} states (give one per state, or one number for all)")  # fmt: skip
     trace_tab = _table(raw, "trace", str(path))
     method = trace_tab.get("method", "auto")
     if not isinstance(method, str) or method not in METHODS:

@@ -214,8 +214,14 @@ class ReachTube:
 
     def dim_indices(self, dims) -> list[int]:
         """State indices of ``dims`` (names or indices), checked (:class:`SetError` naming a bad one)."""
+        if isinstance(dims, (str, int, np.integer)):
+            dims = (dims,)
+        if not hasattr(dims, "__iter__"):
+            raise SetError(f"dims must be state names or indices, got {dims!r}")
         idx = []
         for d in dims:
+            if isinstance(d, bool) or not isinstance(d, (str, int, np.integer)):
+                raise SetError(f"dims must be state names or indices, got {d!r} in {dims!r}")
             if isinstance(d, str):
                 if d not in self.state_names:
                     if d.strip().lstrip("+-").isdigit():  # an index given as text (the command line's --dims)
@@ -231,7 +237,12 @@ class ReachTube:
 
     def at(self, t: float):
         """The set at time ``t``: the time-point set if ``t`` is a sample time, else the time-interval set."""
-        t = float(t)
+        try:
+            t = float(t)
+        except (TypeError, ValueError):
+            raise DataError(f"ReachTube.at: t must be one time (a number), got {t!r}"[:200]) from None
+        if not np.isfinite(t):
+            raise ReachError(f"time {t} is outside the tube [{self.times[0]}, {self.times[-1]}]")
         # a time given a little off a sample (its rounding) is that sample: 1e-9 of the tube's span plus a few ulps of
         # the time stamps; it was 1e-9 of |t|, 1.7 s for Unix time stamps (the set of the nearest of 170 samples at
         # 100 Hz), and at least 1e-9 (every set of a tube over 1e-9 s was its first sample's)
@@ -310,10 +321,19 @@ class ReachTube:
         tol : float
             Containment tolerance (zonotope norm <= 1 + tol).
         """
-        times = np.asarray(times, dtype=float).reshape(-1)
-        Y = np.asarray(Y, dtype=float)
+        try:
+            times = np.asarray(times, dtype=float).reshape(-1)
+            Y = np.asarray(Y, dtype=float)
+            U = None if inputs is None else np.asarray(inputs, dtype=float)
+        except (TypeError, ValueError):
+            raise DataError("ReachTube.contains: times, Y and inputs must be numeric arrays") from None
         if Y.ndim == 1:
             Y = Y[:, None]
+        if Y.ndim != 2:
+            raise DataError(f"Y must be an array (K, p) of K measurements, got shape {Y.shape}")
+        if U is not None and (U.ndim != 2 or U.shape[0] != times.size or (self.model is not None
+                                                                          and U.shape[1] != self.model.m)):
+            raise DataError(f"inputs must be an array (K, m) of the {times.size} times' inputs, got shape {U.shape}")
         if Y.shape[0] != times.size:
             raise DataError(f"Y has {Y.shape[0]} rows for {times.size} times")
         if not np.all(np.isfinite(Y)):
@@ -322,7 +342,7 @@ class ReachTube:
         for i, t in enumerate(times):
             S = self.at(t)
             if output:
-                u = None if inputs is None else np.asarray(inputs, dtype=float)[i]
+                u = None if U is None else U[i]
                 S = output_enclosure(self.model, S, u)
             if V is not None:
                 S = S + as_zonotope(V, name="V")

@@ -233,3 +233,139 @@ def test_python_dash_m_reachconf(tmp_path):
                          capture_output=True, text=True, timeout=120)  # fmt: skip
     assert run.returncode == 2, run.stderr
     assert run.stderr.strip().splitlines() == [f"reachconf: error: {tmp_path / 'missing.toml'}: no such run file"]
+
+
+def test_a_reference_holding_the_same_data_is_no_change(tmp_path, capsys):
+    """Was: `input_scale on kappa_ref (k = 0.9997 [0.9533, 1.046]) explains the gap` — 88 % of the numerical
+    difference of two fits of the same recordings."""
+    import shutil
+
+    shutil.copytree(demo_run_file().parent, tmp_path / "demo")
+    run = tmp_path / "demo" / "run.toml"
+    run.write_text(run.read_text() + '\n[diagnose]\nreference = "suite"\n')
+    assert cli.main(["diagnose", str(run), "--json", str(tmp_path / "report.json")]) == 0
+    out = capsys.readouterr().out
+    assert "no change against the reference run" in out and "explains the gap" not in out, out
+    report = rc.GapReport.load(tmp_path / "report.json")
+    assert report.decision["status"] == "none" and report.decision["reference"]["null_effect"]
+    # a saved report holds NaN and inf as None: its summary shows them as "—" (was: TypeError from format)
+    d = json.loads((tmp_path / "report.json").read_text())
+
+    def nones(x):
+        if isinstance(x, dict):
+            return {k: nones(v) for k, v in x.items()}
+        if isinstance(x, list):
+            return [nones(v) for v in x]
+        return None if isinstance(x, float) else x
+
+    for key in ("ranked_effects", "where", "before_after", "base", "features"):
+        d[key] = nones(d[key])
+    (tmp_path / "nones.json").write_text(json.dumps(d))
+    text = rc.GapReport.load(tmp_path / "nones.json").summary()
+    assert "| - | base (refitted) | | — |" in text and "nan" not in text
+
+
+# ---------------------------------------------------------------- a second session (2 Dec): diagnosis, data, tubes
+def test_tube_times_and_shapes_are_checked():
+    """Was: at(inf) returned the initial set (contains at inf: "conformant"); bare Type/ValueErrors otherwise."""
+    tube = rc.reach(rc.models.vanderpol(), rc.Interval([1.25, 2.35], [1.55, 2.45]), 0.5)
+    for t in (np.inf, -np.inf):
+        with pytest.raises(rc.ReachError, match="outside the tube"):
+            tube.at(t)
+    with pytest.raises(rc.ReachError, match="outside the tube"):
+        tube.contains([np.inf], [[1.4, 2.4]], output=False)
+    for t in (np.array([0.1, 0.2]), None, "x"):
+        with pytest.raises(rc.DataError, match="t must be one time"):
+            tube.at(t)
+    with pytest.raises(rc.DataError, match=r"Y must be an array \(K, p\)"):
+        tube.contains([0.0], np.zeros((1, 2, 2)))
+    with pytest.raises(rc.SetError, match="dims must be state names or indices"):
+        tube.project([None])
+    assert tuple(tube.project(1).state_names) == ("y",)
+
+
+def test_diagnose_arguments_are_checked(tmp_path):
+    """Was: TypeErrors for effects=None / 5 and fit_params=3, "kd" split into 'k' and 'd', a repeated effect
+    ranked twice, a window shorter than a sample or a box rate that leaves one sample failing after the fits."""
+    model, suite = decay_model(), rc.TestSuite([decay_case(f"c{i}", x0, i, duration=3.0) for i, x0 in enumerate((1.0, 1.1, 0.9))])
+    for effects in (None, 5):
+        with pytest.raises(rc.OptionsError, match="effects must be 'all'"):
+            rc.diagnose(model, suite, effects=effects, progress=False)
+    with pytest.raises(rc.OptionsError, match="fit_params must be True, False, None or parameter names"):
+        rc.diagnose(model, suite, fit_params=3, progress=False)
+    with pytest.raises(rc.OptionsError, match=r"has no parameters \['kd'\]"):
+        rc.diagnose(model, suite, fit_params="kd", progress=False)
+    with pytest.raises(rc.OptionsError, match=r"window 0.01 s is shorter than the data's sampling interval"):
+        rc.diagnose(model, suite, options=rc.DiagnoseOptions(window=0.01), progress=False)
+    with pytest.raises(rc.OptionsError, match="box_rate 0.1 Hz keeps one sample"):
+        rc.diagnose(model, suite, options=rc.DiagnoseOptions(box_rate=0.1), progress=False)
+    from reachconf.diagnose.pipeline import resolve_effects
+
+    assert len(resolve_effects(model, ["output_offset", "output_offset", ("output_offset", "th")])) == 1
+
+
+def test_reference_cases_are_paired_by_name():
+    """Was: paired by position (a reversed reference paired c0 with c2; other names were accepted)."""
+    model, suite = decay_model(), rc.TestSuite([decay_case(f"c{i}", x0, i, duration=3.0) for i, x0 in enumerate((1.0, 1.1, 0.9))])
+    renamed = [rc.TestCase("x" + c.name, c.group, c.t, c.U, c.Y, c.input_names, c.output_names) for c in suite]
+    with pytest.raises(rc.OptionsError, match=r"reference: it has no case named \['c0', 'c1', 'c2'\]"):
+        rc.diagnose(model, suite, reference=renamed, progress=False)
+    from reachconf.diagnose.options import DiagnoseOptions
+    from reachconf.diagnose.fit import prepare
+    from reachconf.diagnose.reference import prepare_reference
+
+    opts = DiagnoseOptions()
+    prepared = [prepare(model, c, opts) for c in suite]
+    ref = prepare_reference(model, list(suite)[::-1], prepared, opts)
+    assert [r.name for r in ref] == ["c0", "c1", "c2"]
+
+
+def test_results_and_options_refuse_what_they_cannot_show(demo, tmp_path):
+    """Was: table(digits=-1) a bare ValueError; plot(dims=) of unknown outputs an empty picture; step2_decimate=0
+    accepted; a run file's max_error of the wrong length an error that named neither the file nor the table."""
+    spec, suite = demo
+    res = rc.synthesize_W(spec.model, rc.TestSuite([suite[0]]), spec.V,
+                          options=rc.SynthesisOptions(alpha_iterations=1, merge_iterations=1))  # fmt: skip
+    for digits in (-1, None, 2.5):
+        with pytest.raises(rc.OptionsError, match="digits must be an integer from 1 to 17"):
+            res.table(digits=digits)
+    rs = rc.reachset_conformance(spec.model, suite[0], spec.W, spec.V, keep_tube=False)
+    with pytest.raises(rc.SetError, match="dims must be two of the outputs"):
+        rs.plot(dims=("X", "zz"))
+    for bad in (0, -3):
+        with pytest.raises(rc.OptionsError, match="step2_decimate must be an integer >= 1"):
+            rc.SynthesisOptions(step2_decimate=bad)
+    import shutil
+
+    shutil.copytree(demo_run_file().parent, tmp_path / "demo")
+    run = tmp_path / "demo" / "run.toml"
+    run.write_text(run.read_text().replace("[reach]\n", "[reach]\nmax_error = [0.5, 0.5, 0.5]\n"))
+    with pytest.raises(rc.DataError, match=r"run.toml: \[reach\] max_error has 3 entries, model .* has 6 states"):
+        load_run(run)
+
+
+def test_damaged_real_data_files(data_root, tmp_path):
+    """Was: NaN in the aero table, a missing units row of an OpenFAST CSV and a fractional BIWI id were read."""
+    from reachconf.datasets.aero import read_performance_table
+    from reachconf.datasets.biwi import read_obsmat
+    from reachconf.datasets.openfast import read_csv
+
+    table = data_root / "windturbine" / "Cp_Ct_Cq.NREL5MW.txt"
+    if not table.is_file():
+        pytest.skip(f"no {table}")
+    lines = table.read_text(encoding="latin-1").splitlines()
+    no = next(i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#") and i > 10)
+    cells = lines[no].split()
+    lines[no] = " ".join(["nan"] + cells[1:])
+    bad = tmp_path / "cp.txt"
+    bad.write_text("\n".join(lines) + "\n", encoding="latin-1")
+    with pytest.raises(rc.DataError, match=rf"cp.txt: line {no + 1}: NaN or inf"):
+        read_performance_table(bad)
+    csv = tmp_path / "out.csv"
+    csv.write_text("Time,RotSpeed\n0.0,9.0\n0.1,9.1\n0.2,9.2\n")
+    with pytest.raises(rc.DataError, match="the second row must give the channels' units"):
+        read_csv(csv)
+    obs = tmp_path / "obsmat.txt"
+    obs.write_text("1 1 0 0 0 0 0 0\n7 1.5 0 0 0 0 0 0\n")
+    with pytest.raises(rc.DataError, match=r"row 2, column 2: the pedestrian id must be a whole number"):
+        read_obsmat(obs)

@@ -78,6 +78,11 @@ def default_data() -> Path:
 def make_case(model, path, t_skip, seconds=None):
     """The test case of one file (SI units, transient left out) and what was taken from where."""
     out = read_output(path)
+    expected = {"RotSpeed": "rpm", "TTDspFA": "m", "TwrBsMyt": "kN-m", "GenTq": "kN-m", "BldPitch1": "deg"}
+    wrong = {n: out.units.get(n) for n, u in expected.items() if n in out.units
+             and out.units[n].lower().replace("·", "-") != u.lower()}  # fmt: skip
+    if wrong:  # the conversions below assume OpenFAST's units
+        raise rc.DataError(f"{path}: channels in other units than OpenFAST's {expected}: {wrong}")
     t = out.time
     keep = t >= t_skip - 1e-9
     if seconds is not None:

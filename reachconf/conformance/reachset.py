@@ -10,7 +10,7 @@ from scipy.optimize import linprog
 
 from reachconf.checks import check_options
 from reachconf.budget import TimeBudget, check_memory, check_time_limit, tube_bytes_per_step
-from reachconf.errors import ConformanceError, OptionsError, ReachError
+from reachconf.errors import ConformanceError, OptionsError, ReachError, SetError
 from reachconf.io.cases import case_arrays
 from reachconf.io.results import JsonResult
 from reachconf.plot import plot_measured
@@ -139,7 +139,10 @@ class ReachsetResult(JsonResult):
         names = list(self.output_names)
         if dims is None:
             dims = tuple(names[:2])
-        if self.Y is not None and all(d in names for d in dims):
+        unknown = [d for d in dims if d not in names]
+        if self.tube is None and (unknown or len(dims) != 2):  # (with a tube, its states are checked by its plot)
+            raise SetError(f"ReachsetResult.plot: dims must be two of the outputs {names}, got {tuple(dims)!r}")
+        if self.Y is not None and not unknown:
             xy = np.asarray(self.Y)[:, [names.index(d) for d in dims]]
             inside = np.asarray(self.inside, bool)
             plot_measured(ax, [xy[inside]], dims)

@@ -125,6 +125,8 @@ class SynthesisOptions:
         mi = self.merge_iterations
         if mi is not None and (int(mi) != mi or mi < 1):
             raise OptionsError(f"merge_iterations must be a positive integer or None, got {mi!r}")
+        if self.step2_decimate < 1:
+            raise OptionsError(f"step2_decimate must be an integer >= 1, got {self.step2_decimate!r}")
         if not (np.isfinite(self.alpha_max) and self.alpha_max >= 1.0):
             raise OptionsError(f"alpha_max must be a finite number >= 1, got {self.alpha_max!r}")
         for name in ("reach", "reach_fallback"):
@@ -309,6 +311,8 @@ class SynthesisResult(JsonResult):
         A group that is not conformant has no verified box: its cells are "—" (the last box tried is in
         ``groups`` and the JSON).
         """
+        if isinstance(digits, bool) or not isinstance(digits, (int, np.integer)) or not 1 <= digits <= 17:
+            raise OptionsError(f"SynthesisResult.table: digits must be an integer from 1 to 17, got {digits!r}")
         names = list(self.disturbance_names)
         head = "| group | " + " | ".join(names) + " | α | conformant |"
         rows = [head, "|" + "---|" * (len(names) + 3)]

@@ -66,9 +66,12 @@ class PerformanceTable:
 
 def _numbers(path, lineno, line):
     try:
-        return np.array([float(v) for v in line.split()])
+        values = np.array([float(v) for v in line.split()])
     except ValueError:
         raise DataError(f"{path}: line {lineno}: expected numbers, got {line.strip()[:60]!r}") from None
+    if not np.all(np.isfinite(values)):
+        raise DataError(f"{path}: line {lineno}: NaN or inf among the numbers {line.strip()[:60]!r}")
+    return values
 
 
 def read_performance_table(path) -> PerformanceTable:

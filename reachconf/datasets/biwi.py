@@ -59,6 +59,10 @@ def read_obsmat(path, sequence=None) -> list[Track]:
             if not all(np.isfinite(vals)):
                 bad = next(i for i, v in enumerate(vals) if not np.isfinite(v))
                 raise DataError(f"{path}: row {r}, column {bad + 1}: NaN/inf not allowed")
+            for col, what in ((0, "frame number"), (1, "pedestrian id")):
+                if vals[col] != int(vals[col]):
+                    raise DataError(f"{path}: row {r}, column {col + 1}: the {what} must be a whole number, "
+                                    f"got {cells[col]!r}")  # fmt: skip
             rows.append(vals)
     if not rows:
         raise DataError(f"{path}: file is empty")

@@ -160,7 +160,11 @@ def read_csv(path) -> OpenFASTOutput:
     if len(lines) < 3:
         raise DataError(f"{path}: needs a names row, a units row and data rows")
     names = [n.strip() for n in lines[0].split(",")]
-    units = [u.strip().strip("()") for u in lines[1].split(",")]
+    raw_units = [u.strip() for u in lines[1].split(",")]
+    if all(_is_number(u) for u in raw_units):  # the units row is missing: it would eat the first data row
+        raise DataError(f"{path}: the second row must give the channels' units, e.g. '(s)', got numbers "
+                        f"{lines[1][:60]!r}")  # fmt: skip
+    units = [u.strip("()") for u in raw_units]
     if len(units) != len(names) or len(set(names)) != len(names):
         raise DataError(f"{path}: the units row must match the {len(names)} (distinct) channel names")
     rows = [ln.split(",") for ln in lines[2:]]
@@ -182,3 +186,11 @@ def read_output(path) -> OpenFASTOutput:
     """``.outb`` or ``.csv(.gz)`` by the file name."""
     path = Path(path)
     return read_outb(path) if path.suffix.lower() == ".outb" else read_csv(path)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True

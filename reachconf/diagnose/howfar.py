@@ -137,7 +137,8 @@ def actuator_vs_process(model, fit, cases, V, k, segment, threshold: float = 1.0
     ratio, per = box_shrink(br, bm, eps, model.disturbance_names)
     side = "actuators" if ratio >= threshold else "process model"
     verdict = (f"with the requested instead of the measured actuator signals ({', '.join(have)}) the minimal W "
-               f"volume is {ratio:.2f}x larger: the gap sits mostly in the {side}")  # fmt: skip
+               f"volume is {ratio:.2f}x " + ("larger" if ratio >= 1 else "as large") + f": the gap sits mostly in the "
+               f"{side}")  # fmt: skip
     return {"inputs": have, "request_map": maps, "volume_ratio": ratio, "per_channel_ratio": per,
             "box_measured": [list(map(float, bm[0])), list(map(float, bm[1]))],
             "box_requested": [list(map(float, br[0])), list(map(float, br[1]))], "verdict": verdict}  # fmt: skip

@@ -100,6 +100,9 @@ def resolve_effects(model, effects):
     if isinstance(effects, str) and effects == "all":
         chosen = list(EFFECTS.values())
     else:
+        if effects is None or not (isinstance(effects, (str, Effect, tuple)) or hasattr(effects, "__iter__")):
+            raise OptionsError(f"effects must be 'all', an effect name, (name, target) pairs or Effect objects, "
+                               f"got {effects!r}"[:200])  # fmt: skip
         items = [effects] if isinstance(effects, (str, Effect, tuple)) else list(effects)
         chosen, pairs = [], []
         for it in items:
@@ -120,7 +123,7 @@ def resolve_effects(model, effects):
                 raise OptionsError(f"effects: {e.name} cannot act on {t!r} of model {model.name!r}; "
                                    f"targets: {e.applicable(model)}")  # fmt: skip
             out.append((e, t))
-        return out
+        return list({(e.name, t): (e, t) for e, t in out}.values())  # an effect named twice is one candidate
     return [(e, t) for e in chosen for t in e.applicable(model)]
 
 
@@ -142,6 +145,10 @@ def _fit_names(model, fit_params):
         return tuple(model.param_names)
     if fit_params is False or fit_params is None:
         return ()
+    if isinstance(fit_params, str):  # one name (a string is not split into letters)
+        fit_params = (fit_params,)
+    if not hasattr(fit_params, "__iter__") or not all(isinstance(n, str) for n in fit_params):
+        raise OptionsError(f"fit_params must be True, False, None or parameter names, got {fit_params!r}"[:200])
     names = tuple(fit_params)
     unknown = sorted(set(names) - set(model.param_names))
     if unknown:
@@ -179,7 +186,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         the α-search of eq. 68) of the held-out segments for the base and the
         named model (``before_after["W_reachset"]``); slower.
     reference : TestSuite, iterable of TestCase or path of a suite folder, optional
-        The same cases (same order and sample times) recorded without the
+        The same cases (same names and sample times) recorded without the
         change: the effect named is then the one that explains how the suite
         differs from it (:mod:`reachconf.diagnose.reference`; by default the
         difference of the two recordings' residuals,
@@ -228,6 +235,10 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     if fits.workers > 1 and not picklable({e for e, _ in candidates}):
         fits = FitMap(1)  # an effect that cannot travel between processes keeps the fits here
 
+    coarse = max(float(np.median(np.diff(c.t))) for c in cases)  # (a gap in one case is not its rate)
+    if options.window < coarse:
+        raise OptionsError(f"DiagnoseOptions.window {options.window:g} s is shorter than the data's sampling interval "
+                           f"({coarse:g} s): a prediction window needs at least two samples")  # fmt: skip
     prepared = [prepare(model, c, options) for c in cases]
     ref_prepared = prepare_reference(model, reference, prepared, options) if reference is not None else None
     sigma = noise_level(np.vstack([d.Y for d in prepared]))
@@ -240,6 +251,10 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     clusters = window_clusters(window_counts(prepared), options.min_clusters)
     dt = float(np.median(np.diff(prepared[0].t)))
     k = 1 if options.box_rate is None else max(int(round(1.0 / (options.box_rate * dt))), 1)
+    short = [c.name for c in cases if c.t.size <= k]  # a decimated case keeps (size - 1) // k + 1 samples
+    if short:
+        raise OptionsError(f"DiagnoseOptions.box_rate {options.box_rate:g} Hz keeps one sample of case(s) {short[:3]} "
+                           f"(every {k}th of samples {dt:g} s apart): raise it, or None for the data's own rate")  # fmt: skip
     cache = {}
     n_pairs = options.pair_top * (options.pair_top - 1) // 2
     bar = tqdm(total=3 + min(options.screen, len(candidates)) + n_pairs, desc="diagnose", disable=not progress,
@@ -294,6 +309,16 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     decision = decide(base_sc, models if changed else [], clusters, options, mimic=None if difference else mimic,
                       spread=spread if change is None else None, reweigh=reweigh if change is None else None,
                       relevance_of=base_sc.total if change is not None else None)  # fmt: skip
+    chosen = decision["chosen"]
+    if change is not None and change["z"] < options.z_name and chosen is not None and _as_on_reference(
+            effect_entries(full(chosen), options.interval, options.interval_method),
+            full_fit(model, chosen, ref_prepared, scale, fit_names, options, cache, spread=False, fits=fits)):
+        # no significant excess, and fitted on the reference alone the effect comes out inside the suite's
+        # intervals: what it removed is the two recordings' numerical difference (a reference holding the same
+        # data), not a change (reference.py)
+        change["null_effect"] = chosen.label
+        decision.update(status="none", chosen=None, alternatives=[])
+        changed = False
     if change is not None:
         change["loss"] = options.reference_loss
         change["difference_loss"] = base_sc.total if options.reference_loss == "difference" else None
@@ -423,3 +448,16 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
                                  "at_bound": list(m.at_bound),
                                  "losses": m.losses} for m in models], "layout": layout}  # fmt: skip
     return report
+
+
+def _as_on_reference(entries, ref_fit) -> bool:
+    """Whether every named effect's parameters fitted on the reference lie inside the suite's intervals."""
+    for e in entries:
+        theta = ref_fit.effect_params.get((e["effect"], e["target"]))
+        if theta is None:
+            return False
+        for name, value in zip(EFFECTS[e["effect"]].params, theta):
+            lo, hi = e["interval"][name]
+            if not lo <= float(value) <= hi:
+                return False
+    return True

@@ -39,7 +39,7 @@ predicts: the verdict is "no change" when nothing is named and the base's
 excess is not significant.
 
 The windows are paired one to one, so the reference must hold the same
-cases: the same number, in the same order, with the same sample times.
+cases: the same number, by the same names (paired by name), with the same sample times.
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ def prepare_reference(model, reference, prepared, options) -> list:
     Raises
     ------
     OptionsError
-        When the reference holds another number of cases, or a case with other sample times.
+        When the reference holds another number of cases, other case names, or a case with other sample times.
     """
     if isinstance(reference, (str, os.PathLike)):  # a suite folder
         from reachconf.io import load_suite
@@ -75,7 +75,14 @@ def prepare_reference(model, reference, prepared, options) -> list:
     cases = list(reference)
     if len(cases) != len(prepared):
         raise OptionsError(f"reference: it holds {len(cases)} test cases, the suite {len(prepared)}; the reference "
-                           "must hold the same cases (same order and sample times) without the change")  # fmt: skip
+                           "must hold the same cases (same names and sample times) without the change")  # fmt: skip
+    by_name = {c.name: c for c in cases}
+    missing = [d.name for d in prepared if d.name not in by_name]
+    if missing or len(by_name) != len(cases):
+        what = f"has no case named {missing[:3]}" if missing else "names two cases alike"
+        raise OptionsError(f"reference: it {what}; the reference's cases are paired with the suite's by name "
+                           f"(the same cases without the change)")  # fmt: skip
+    cases = [by_name[d.name] for d in prepared]  # paired by name, whatever their order
     ref = [prepare(model, c, options) for c in cases]
     for d, r in zip(prepared, ref):
         if d.t.shape != r.t.shape or not np.allclose(d.t, r.t, rtol=0.0, atol=1e-9 * max(1.0, float(np.abs(d.t).max()))):

@@ -124,45 +124,45 @@ class GapReport(JsonResult):
             for e in dec["named"]:
                 for p, v in e["params"].items():
                     lo, hi = e["interval"][p]
-                    lines.append(f"| {e['effect']} | {e['target']} | {p} | {v:.4g} | {e['params_std'][p]:.2g} | "
-                                 f"[{lo:.4g}, {hi:.4g}] |")  # fmt: skip
+                    lines.append(f"| {e['effect']} | {e['target']} | {p} | {_f(v, '.4g')} | {_f(e['params_std'][p], '.2g')} | "
+                                 f"[{_f(lo, '.4g')}, {_f(hi, '.4g')}] |")  # fmt: skip
             lines.append("")
         for a in dec.get("alternatives", []):
-            lines.append(f"- Indistinguishable from **{a['label']}** (held-out z = {a['z']:.1f})"
+            lines.append(f"- Indistinguishable from **{a['label']}** (held-out z = {_f(a['z'], '.1f')})"
                          + (f"; separating maneuver: {a['separating']['probe']['text']} "
-                            f"({a['separating']['separation']:.1f} noise std)" if a.get("separating") else ""))  # fmt: skip
+                            f"({_f(a['separating']['separation'], '.1f')} noise std)" if a.get("separating") else ""))  # fmt: skip
         lines += ["", "## Which effect (held-out prediction, cross-fitted)", "",
                   "| rank | model | parameters (mean over folds) | held-out loss | gain vs base | z vs base | "
                   "admissible |", "|---|---|---|---|---|---|---|"]  # fmt: skip
         for i, e in enumerate([e for e in self.ranked_effects if e.get("held_out_loss") is not None][:top]):
             ps = "; ".join(f"{lab}: " + ", ".join(f"{k} = {v:.4g}" for k, v in pv.items())
                            for lab, pv in e["params_by_effect"].items())  # fmt: skip
-            lines.append(f"| {i + 1} | {e['label']} | {ps} | {e['held_out_loss']:.4g} | "
-                         f"{100 * e['prediction_gain']:.0f} % | {e['z_vs_base']:.1f} | "
+            lines.append(f"| {i + 1} | {e['label']} | {ps} | {_f(e['held_out_loss'], '.4g')} | "
+                         f"{_pct(e['prediction_gain'])} | {_f(e['z_vs_base'], '.1f')} | "
                          f"{'yes' if e['admissible'] else 'no'} |")  # fmt: skip
-        lines.append(f"| - | base (refitted) | | {self.base.get('held_out_loss', float('nan')):.4g} | | | |")
+        lines.append(f"| - | base (refitted) | | {_f(self.base.get('held_out_loss'), '.4g')} | | | |")
         if self.before_after:
             lines += ["", "## How far it shrinks (minimal trace-conformant boxes, held-out cases)", "",
                       "| set | channel | base | with effect | shrink |", "|---|---|---|---|---|"]  # fmt: skip
             for setname in ("W", "V", "W_reachset"):
                 for ch, row in self.before_after.get(setname, {}).items():
-                    lines.append(f"| {setname} | {ch} | [{row['before'][0]:.4g}, {row['before'][1]:.4g}] | "
-                                 f"[{row['after'][0]:.4g}, {row['after'][1]:.4g}] | {row['shrink']:.2f} |")  # fmt: skip
+                    lines.append(f"| {setname} | {ch} | [{_f(row['before'][0], '.4g')}, {_f(row['before'][1], '.4g')}] | "
+                                 f"[{_f(row['after'][0], '.4g')}, {_f(row['after'][1], '.4g')}] | {_f(row['shrink'], '.2f')} |")  # fmt: skip
         loc = self.where.get("location", {})
         if loc:
             lines += ["", "## Where", ""]
-            for ch, sh in sorted(loc.get("shares", {}).items(), key=lambda kv: -kv[1]):
-                drv = ", ".join(f"{o} (rho {v:.2f})" for o, v in list(loc.get("drivers", {}).get(ch, {}).items())[:2]
-                                if v > 0.3)  # fmt: skip
-                lines.append(f"- {ch}: {100 * sh:.0f} % of the normalised disturbance box"
+            for ch, sh in sorted(loc.get("shares", {}).items(), key=lambda kv: -(kv[1] if kv[1] is not None else -np.inf)):
+                drv = ", ".join(f"{o} (rho {_f(v, '.2f')})" for o, v in list(loc.get("drivers", {}).get(ch, {}).items())[:2]
+                                if v is not None and v > 0.3)  # fmt: skip
+                lines.append(f"- {ch}: {_pct(sh)} of the normalised disturbance box"
                              + (f", driven by the errors of {drv}" if drv else ""))  # fmt: skip
             for g, segs in loc.get("group_segments", {}).items():
                 for s in segs[:3]:
-                    lines.append(f"- {s['channel']}, {s['t0']:.1f}-{s['t1']:.1f} s of {s['share']:.0%} of the {g} runs")
+                    lines.append(f"- {s['channel']}, {_f(s['t0'], '.1f')}-{_f(s['t1'], '.1f')} s of {_pct(s['share'])} of the {g} runs")
             for ch, corr in loc.get("conditions", {}).items():
                 best = list(corr.items())[:3]
                 if best:
-                    lines.append(f"- |{ch}| grows with " + ", ".join(f"{k} (rho {v:+.2f})" for k, v in best))
+                    lines.append(f"- |{ch}| grows with " + ", ".join(f"{k} (rho {_f(v, '+.2f')})" for k, v in best))
         for tb in self.tubes:  # the picture's tubes: a reach that failed is said here too
             if "error" in tb:
                 lines += ["", f"Reach tube ({tb['label']}) of the held-out case: not drawn, the reach failed: {tb['error']}"]
@@ -172,7 +172,7 @@ class GapReport(JsonResult):
         if self.features:
             lines += ["", "## Model-free check (sparse regression of the disturbance traces)", ""]
             for f in self.features[:top]:
-                lines.append(f"- {f['channel']}: {f['feature']} explains {100 * f['share']:.0f} % of the variance")
+                lines.append(f"- {f['channel']}: {f['feature']} explains {_pct(f['share'])} of the variance")
         lines += ["", f"{self.base.get('folds', '?')} folds; first fold: {len(self.split.get('train', []))} "
                   f"training, {len(self.split.get('test', []))} held-out cases; {self.seconds:.1f} s "
                   f"({self.cpu_seconds:.1f} s CPU)."]  # fmt: skip
@@ -268,3 +268,15 @@ class GapReport(JsonResult):
             paths.append(str(save_figure(fig, out / f"{kind}.png", dpi=110, bbox_inches=None)))
             plt.close(fig)
         return paths
+
+
+def _f(value, spec: str) -> str:
+    """A number for the summary; "—" for a value a saved report holds as None (NaN or inf when computed)."""
+    if value is None or not np.isfinite(value):
+        return "—"
+    return format(value, spec)
+
+
+def _pct(share) -> str:
+    """A share as a whole percentage ("—" when None or not finite)."""
+    return "—" if share is None or not np.isfinite(share) else f"{100 * share:.0f} %"

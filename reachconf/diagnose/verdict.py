@@ -95,7 +95,9 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
         if record["status"] == "none" and ref["z"] < record["thresholds"]["z_name"]:
             return pre + (f"no change against the reference run: the base model's held-out loss differs from it by "
                           f"{100 * ref['share']:+.0f} % (z = {ref['z']:.1f} < {record['thresholds']['z_name']:g}), "
-                          "and no effect explains the difference of the two recordings")  # fmt: skip
+                          "and no effect explains the difference of the two recordings"
+                          + (f" ({ref['null_effect']} fits it, but fitted on the reference alone it comes out inside its intervals)"
+                             if ref.get("null_effect") else ""))  # fmt: skip
         pre += (f"against the reference run (the base model's held-out loss differs from it by "
                 f"{100 * ref['share']:+.0f} %, z = {ref['z']:.1f}; the shares below are of the squared difference of "
                 "its residuals on the two recordings): ")  # fmt: skip
@@ -112,8 +114,10 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
     if record["status"] == "none":
         if best_entry is None:
             return pre + "no effect was fitted"
+        g = best_entry["prediction_gain"]
         return pre + (f"no effect in the library explains the gap (best: {best_entry['label']}, held-out prediction "
-                      f"loss {-100 * best_entry['prediction_gain']:+.0f} %, z = {best_entry['z_vs_base']:.1f}; naming "
+                      f"loss {100 * abs(g):.0f} % {'below' if g >= 0 else 'above'} base, z = "
+                      f"{best_entry['z_vs_base']:.1f}; naming "
                       f"needs z >= {record['thresholds']['z_name']:g} and a loss reduction of at least "
                       f"{100 * record['thresholds']['min_improvement']:.0f} %{_route(record['thresholds'])}{bound})")  # fmt: skip
     named = record["named"]
@@ -123,8 +127,9 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
                      + ")" for t in tests)  # fmt: skip
     if record["status"] == "named":
         text = " and ".join(_fmt_effect(e) for e in named) + f" explains the gap: held-out prediction loss {gain}"
-        if shrink is not None:
-            text += f"; the minimal W volume shrinks {shrink:.2f}x"
+        if shrink is not None and np.isfinite(shrink) and shrink > 0:
+            text += (f"; the minimal W volume shrinks {shrink:.2f}x" if shrink >= 1
+                     else f"; the minimal W volume grows {1 / shrink:.2f}x")  # fmt: skip
         return pre + text + bound
     # indistinguishable: the effects shared by all explanations are named, the differing ones listed
     alts = record["alternatives"]
