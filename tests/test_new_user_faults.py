@@ -247,7 +247,7 @@ def test_a_reference_holding_the_same_data_is_no_change(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "no change against the reference run" in out and "explains the gap" not in out, out
     report = rc.GapReport.load(tmp_path / "report.json")
-    assert report.decision["status"] == "none" and report.decision["reference"]["null_effect"]
+    assert report.decision["status"] == "none" and report.decision["reference"]["same_data"]
     # a saved report holds NaN and inf as None: its summary shows them as "—" (was: TypeError from format)
     d = json.loads((tmp_path / "report.json").read_text())
 

@@ -36,7 +36,9 @@ paired test of the windows, relevance (``min_improvement``) as the share of
 the base model's loss (of the change) that an effect removes.  Without a
 change the difference of two recordings is their noise, which no effect
 predicts: the verdict is "no change" when nothing is named and the base's
-excess is not significant.
+excess is not significant — and when the reference holds the suite's own
+data (outputs within a thousandth of the noise level, the same inputs),
+whatever an effect fits of the two fits' numerical difference.
 
 The windows are paired one to one, so the reference must hold the same
 cases: the same number, by the same names (paired by name), with the same sample times.

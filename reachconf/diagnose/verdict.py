@@ -92,11 +92,12 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
     pre = "INTERRUPTED, partial result: " if interrupted else ""
     ref = record.get("reference")
     if ref is not None and ref.get("loss") == "difference":
-        if record["status"] == "none" and ref["z"] < record["thresholds"]["z_name"]:
+        if record["status"] == "none" and (ref["z"] < record["thresholds"]["z_name"] or ref.get("same_data")):
             return pre + (f"no change against the reference run: the base model's held-out loss differs from it by "
                           f"{100 * ref['share']:+.0f} % (z = {ref['z']:.1f} < {record['thresholds']['z_name']:g}), "
                           "and no effect explains the difference of the two recordings"
-                          + (f" ({ref['null_effect']} fits it, but fitted on the reference alone it comes out inside its intervals)"
+                          + (f" (the reference holds the suite's own data, to a thousandth of the noise; {ref['null_effect']} "
+                             f"fits only the two fits' numerical difference)"
                              if ref.get("null_effect") else ""))  # fmt: skip
         pre += (f"against the reference run (the base model's held-out loss differs from it by "
                 f"{100 * ref['share']:+.0f} %, z = {ref['z']:.1f}; the shares below are of the squared difference of "
