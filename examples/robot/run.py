@@ -49,6 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
+from reachconf.commands import positive_int
 from reachconf.datasets.biwi import ANNOTATION_DT, read_sequence
 from reachconf.errors import ReachconfError
 from reachconf.io import atomic_write, json_text
@@ -318,22 +319,11 @@ def _summary(runs, scene, sname):
     }
 
 
-def _positive_int(text):
-    """``--starts``: a positive whole number (argparse prints one line and exits 2 otherwise)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive whole number, got {text!r}")
-    return value
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=os.environ.get("REACHCONF_DATA", "../shared/data") + "/pedestrians")
     ap.add_argument("--out", required=True)
-    ap.add_argument("--starts", type=_positive_int, default=12, help="start times per sequence and scenario")
+    ap.add_argument("--starts", type=positive_int, default=12, help="start times per sequence and scenario")
     ap.add_argument("--sequences", nargs="+", default=["eth", "hotel"])
     ap.add_argument("--no-entry-zones", dest="entry_zones", action="store_false",
                     help="online verification without phantom pedestrians at the entry zones (ablation)")
