@@ -369,3 +369,15 @@ def test_damaged_real_data_files(data_root, tmp_path):
     obs.write_text("1 1 0 0 0 0 0 0\n7 1.5 0 0 0 0 0 0\n")
     with pytest.raises(rc.DataError, match=r"row 2, column 2: the pedestrian id must be a whole number"):
         read_obsmat(obs)
+
+
+def test_an_empty_effects_list_in_a_run_file(tmp_path, capsys):
+    """Was: `effects = []` in a run file gave "no candidate effect applies to this model" without the file."""
+    import shutil
+
+    shutil.copytree(demo_run_file().parent, tmp_path / "demo")
+    run = tmp_path / "demo" / "run.toml"
+    run.write_text(run.read_text() + "\n[diagnose]\neffects = []\n")
+    assert cli.main(["diagnose", str(run)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "run.toml: [diagnose]" in err[0] and "no candidate effect applies" in err[0], err
