@@ -134,3 +134,12 @@ def require_file(path, what: str = "file") -> None:
     if path.exists():
         raise DataError(f"{path}: is not a regular file, expected a {what}")
     raise DataError(f"{path}: no such {what}")
+
+
+def is_number_text(text: str) -> bool:
+    """Whether ``text`` parses as a float (a data file's cell: "1.5", "nan", "1e3")."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True

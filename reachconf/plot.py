@@ -73,8 +73,10 @@ def _plot_over_time(tube, i, ax, color, alpha, label, measured):
     if ax is None:
         _, ax = plt.subplots(figsize=(8, 5))
     spans = np.asarray(tube.time_intervals, dtype=float).reshape(-1, 2)
-    lo = np.array([s.interval().lo[i] for s in tube.time_interval_sets])
-    hi = np.array([s.interval().hi[i] for s in tube.time_interval_sets])
+    b = tube.bounds()  # the time-interval sets' hulls (stored for an adaptive tube)
+    if b.shape[0] != spans.shape[0]:  # a streamed tube: the bounds of every step, the sets of every keep_every-th
+        b = np.stack([np.stack([iv.lo, iv.hi]) for iv in (s.interval() for s in tube.time_interval_sets)])
+    lo, hi = b[:, 0, i], b[:, 1, i]
     rects = [np.array([[a, l], [b, l], [b, h], [a, h]]) for (a, b), l, h in zip(spans, lo, hi)]
     ax.add_collection(PolyCollection(rects, facecolors=color, edgecolors="none", alpha=alpha, label=label))
     pad_t = 0.02 * max(spans[-1, 1] - spans[0, 0], 1e-9)

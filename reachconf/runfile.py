@@ -378,10 +378,11 @@ def diagnose_settings(spec: RunSpec, cases=None) -> dict:
     try:  # each effect on its targets (e.g. a lag on an input the model does not have): named with the file
         from reachconf.diagnose.pipeline import resolve_effects
 
-        if not resolve_effects(spec.model, effects):
-            raise DataError(f"{where}: effects {effects!r}: no candidate effect applies to model {spec.model.name!r}")
+        candidates = resolve_effects(spec.model, effects)
     except ReachconfError as exc:
-        raise DataError(f"{exc}" if str(exc).startswith(where) else f"{where}: {exc}") from None
+        raise DataError(f"{where}: {exc}") from None
+    if not candidates:
+        raise DataError(f"{where}: effects {effects!r}: no candidate effect applies to model {spec.model.name!r}")
     kwargs["effects"] = effects
     if "holdout" in table:
         h = table.pop("holdout")

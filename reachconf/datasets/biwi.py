@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reachconf.checks import require_file
+from reachconf.checks import is_number_text, require_file
 from reachconf.errors import DataError
 
 __all__ = ["Track", "read_obsmat", "read_sequence", "PredictionCases", "prediction_cases", "ANNOTATION_DT"]
@@ -54,7 +54,7 @@ def read_obsmat(path, sequence=None) -> list[Track]:
             try:
                 vals = [float(c) for c in cells]
             except ValueError:
-                bad = next(i for i, c in enumerate(cells) if not _is_float(c))
+                bad = next(i for i, c in enumerate(cells) if not is_number_text(c))
                 raise DataError(f"{path}: row {r}, column {bad + 1}: not a number: {cells[bad]!r}") from None
             if not all(np.isfinite(vals)):
                 bad = next(i for i, v in enumerate(vals) if not np.isfinite(v))
@@ -79,14 +79,6 @@ def read_obsmat(path, sequence=None) -> list[Track]:
         t = sel[:, 0] / step * ANNOTATION_DT
         tracks.append(Track(sequence, int(pid), t, sel[:, [2, 4]].copy(), sel[:, [5, 7]].copy()))
     return tracks
-
-
-def _is_float(c):
-    try:
-        float(c)
-        return True
-    except ValueError:
-        return False
 
 
 def read_sequence(data_dir, name) -> list[Track]:

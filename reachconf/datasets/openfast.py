@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reachconf.checks import require_file
+from reachconf.checks import is_number_text, require_file
 from reachconf.errors import DataError
 
 __all__ = ["OpenFASTOutput", "read_outb", "read_csv", "read_output", "FILE_IDS"]
@@ -161,7 +161,7 @@ def read_csv(path) -> OpenFASTOutput:
         raise DataError(f"{path}: needs a names row, a units row and data rows")
     names = [n.strip() for n in lines[0].split(",")]
     raw_units = [u.strip() for u in lines[1].split(",")]
-    if all(_is_number(u) for u in raw_units):  # the units row is missing: it would eat the first data row
+    if all(is_number_text(u) for u in raw_units):  # the units row is missing: it would eat the first data row
         raise DataError(f"{path}: the second row must give the channels' units, e.g. '(s)', got numbers "
                         f"{lines[1][:60]!r}")  # fmt: skip
     units = [u.strip("()") for u in raw_units]
@@ -186,11 +186,3 @@ def read_output(path) -> OpenFASTOutput:
     """``.outb`` or ``.csv(.gz)`` by the file name."""
     path = Path(path)
     return read_outb(path) if path.suffix.lower() == ".outb" else read_csv(path)
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True

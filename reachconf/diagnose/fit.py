@@ -24,7 +24,7 @@ import numpy as np
 from reachconf.diagnose.effects import effect_param_name
 from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.diagnose.residuals import case_starts, received_inputs, window_residuals
-from reachconf.errors import ConformanceError
+from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.cases import TestCase, case_arrays
 
 __all__ = ["noise_level", "PreparedCase", "prepare", "Candidate", "FitResult",
@@ -86,7 +86,10 @@ def prepare(model, case, options: DiagnoseOptions) -> PreparedCase:
     from scipy.signal import savgol_filter
 
     t, U, Y = case_arrays(model, case)
-    dt = float(np.median(np.diff(t)))
+    dt = float(np.median(np.diff(t)))  # (a gap in the sampling is not its rate)
+    if options.window < dt:
+        raise OptionsError(f"DiagnoseOptions.window {options.window:g} s is shorter than the data's sampling interval "
+                           f"({dt:g} s of case {case.name!r}): a prediction window needs at least two samples")  # fmt: skip
     length = max(int(round(options.window / dt)), 2)
     stride = max(int(round(options.stride / dt)), 1)
     if t.size < length + 2:

@@ -60,7 +60,7 @@ from reachconf.diagnose.locate import locate_gap
 from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.diagnose.parallel import FitMap, picklable
 from reachconf.diagnose.probes import band_shares, separating_probe
-from reachconf.diagnose.reference import change_test, prepare_reference
+from reachconf.diagnose.reference import change_test, prepare_reference, same_data
 from reachconf.diagnose.report import GapReport
 from reachconf.diagnose.scales import case_layout, reweigh_factors
 from reachconf.diagnose.scoring import score_models
@@ -235,10 +235,6 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     if fits.workers > 1 and not picklable({e for e, _ in candidates}):
         fits = FitMap(1)  # an effect that cannot travel between processes keeps the fits here
 
-    coarse = max(float(np.median(np.diff(c.t))) for c in cases)  # (a gap in one case is not its rate)
-    if options.window < coarse:
-        raise OptionsError(f"DiagnoseOptions.window {options.window:g} s is shorter than the data's sampling interval "
-                           f"({coarse:g} s): a prediction window needs at least two samples")  # fmt: skip
     prepared = [prepare(model, c, options) for c in cases]
     ref_prepared = prepare_reference(model, reference, prepared, options) if reference is not None else None
     sigma = noise_level(np.vstack([d.Y for d in prepared]))
@@ -310,7 +306,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
                       spread=spread if change is None else None, reweigh=reweigh if change is None else None,
                       relevance_of=base_sc.total if change is not None else None)  # fmt: skip
     chosen = decision["chosen"]
-    if change is not None and chosen is not None and _same_data(prepared, ref_prepared, sigma):
+    if change is not None and chosen is not None and same_data(prepared, ref_prepared, sigma):
         # the reference holds the suite's own data: what an effect removed is the two fits' numerical difference,
         # not a change (reference.py)
         change["same_data"] = True
@@ -446,15 +442,3 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
                                  "at_bound": list(m.at_bound),
                                  "losses": m.losses} for m in models], "layout": layout}  # fmt: skip
     return report
-
-
-def _same_data(prepared, ref_prepared, sigma) -> bool:
-    """Whether the reference's recordings equal the suite's: the same inputs, and outputs within a thousandth of
-    the noise level in every sample (no change could show through that)."""
-    tol = 1e-3 * np.atleast_1d(sigma)
-    for d, r in zip(prepared, ref_prepared):
-        if d.U.shape != r.U.shape or d.Y.shape != r.Y.shape or not np.allclose(d.U, r.U, rtol=1e-9, atol=1e-12):
-            return False
-        if np.any(np.abs(d.Y - r.Y) > tol):
-            return False
-    return True

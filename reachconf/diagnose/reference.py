@@ -54,7 +54,7 @@ from reachconf.diagnose.fit import prepare, window_counts, window_residuals, win
 from reachconf.diagnose.select import Scored, paired_test
 from reachconf.errors import OptionsError
 
-__all__ = ["prepare_reference", "excess_scores", "difference_score", "change_test"]
+__all__ = ["prepare_reference", "excess_scores", "difference_score", "change_test", "same_data"]
 
 
 def prepare_reference(model, reference, prepared, options) -> list:
@@ -125,3 +125,15 @@ def change_test(base: Scored, base_ref: Scored, clusters) -> dict:
     total = float(np.sum(base.losses))
     excess = float(np.sum(base.losses) - np.sum(base_ref.losses))
     return {"excess_loss": excess, "share": excess / total if total > 0 else 0.0, "z": t["z"]}
+
+
+def same_data(prepared, ref_prepared, sigma) -> bool:
+    """Whether the reference's recordings equal the suite's: the same inputs, and outputs within a thousandth of
+    the noise level in every sample (no change could show through that)."""
+    tol = 1e-3 * np.atleast_1d(sigma)
+    for d, r in zip(prepared, ref_prepared):
+        if d.U.shape != r.U.shape or d.Y.shape != r.Y.shape or not np.allclose(d.U, r.U, rtol=1e-9, atol=1e-12):
+            return False
+        if np.any(np.abs(d.Y - r.Y) > tol):
+            return False
+    return True
