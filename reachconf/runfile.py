@@ -19,6 +19,9 @@ Example::
     v = [-0.5, 0.5]
     [reach]                            # ReachOptions fields
     time_step = 0.02
+    [reach_fallback]                   # optional, ReachOptions fields: synth/pareto retry a failed reach with them
+    algorithm = "lin"
+    tensor_order = 3
     [trace]                            # TraceOptions fields, plus method = "auto" | "perstep" | "optctrl"
     method = "auto"
     [synthesis]                        # SynthesisOptions fields
@@ -68,8 +71,8 @@ from reachconf.sets.core import Interval
 __all__ = ["RunSpec", "load_run", "resolve_model", "diagnose_settings", "select_cases", "input_paths",
            "check_segment_length", "check_segment_step"]  # fmt: skip
 
-_KEYS = {"model", "suite", "segment_length", "segment_step", "params", "sets", "reach", "trace", "synthesis",
-         "description", "workers", "diagnose"}  # fmt: skip
+_KEYS = {"model", "suite", "segment_length", "segment_step", "params", "sets", "reach", "reach_fallback", "trace",
+         "synthesis", "description", "workers", "diagnose"}  # fmt: skip
 
 
 @dataclass
@@ -250,21 +253,19 @@ def load_run(path) -> RunSpec:
     if X0 is not None and unmeasured is not None:
         raise DataError(f"{path}: [sets] gives both X0 and unmeasured; give one (unmeasured: eq. 67 for the "
                         f"measured states)")  # fmt: skip
-    reach_opts = _options(ReachOptions, _table(raw, "reach", str(path)), f"{path}: [reach]")
-    if isinstance(reach_opts.max_error, (list, tuple)) and len(reach_opts.max_error) not in (1, model.n):
-        raise DataError(f"{path}: [reach] max_error has {len(reach_opts.max_error)} entries, model {model.name!r} has "
-                        f"{model.n} states (give one per state, or one number for all)")  # fmt: skip
+    reach_opts = _reach_options(raw, "reach", path, model)
+    fallback = _reach_options(raw, "reach_fallback", path, model) if "reach_fallback" in raw else None
     trace_tab = _table(raw, "trace", str(path))
     method = trace_tab.get("method", "auto")
     if not isinstance(method, str) or method not in METHODS:
         raise DataError(f"{path}: trace.method must be one of {METHODS}, got {method!r}")
     trace_opts = _options(TraceOptions, trace_tab, f"{path}: [trace]", drop=("method",))
     synth_tab = _table(raw, "synthesis", str(path))
-    if {"reach", "trace", "X0"} & set(synth_tab):
-        raise DataError(f"{path}: [synthesis] cannot hold 'reach'/'trace'/'X0': use the [reach] and [trace] tables "
-                        f"and [sets] X0")  # fmt: skip
+    if {"reach", "reach_fallback", "trace", "X0"} & set(synth_tab):
+        raise DataError(f"{path}: [synthesis] cannot hold 'reach'/'reach_fallback'/'trace'/'X0': use the [reach], "
+                        f"[reach_fallback] and [trace] tables and [sets] X0")  # fmt: skip
     synth_opts = _options(SynthesisOptions, synth_tab, f"{path}: [synthesis]")
-    synth_opts = dataclasses.replace(synth_opts, reach=reach_opts, trace=trace_opts,
+    synth_opts = dataclasses.replace(synth_opts, reach=reach_opts, trace=trace_opts, reach_fallback=fallback,
                                      X0=X0 if isinstance(X0, Interval) else None)  # per case: synthesis_options_for
     try:
         workers = check_workers(raw.get("workers"))
@@ -278,6 +279,15 @@ def load_run(path) -> RunSpec:
         step = check_segment_step(step, length, f"{path}: segment_step", "segment_length")
     return RunSpec(path, model, suite_path, W, V, X0, reach_opts, method, trace_opts, synth_opts, workers, raw,
                    length, step, unmeasured)  # fmt: skip
+
+
+def _reach_options(raw, key, path, model) -> ReachOptions:
+    """The ReachOptions of the table ``[key]`` (``reach`` or ``reach_fallback``), ``max_error`` sized to the model."""
+    opts = _options(ReachOptions, _table(raw, key, str(path)), f"{path}: [{key}]")
+    if isinstance(opts.max_error, (list, tuple)) and len(opts.max_error) not in (1, model.n):
+        raise DataError(f"{path}: [{key}] max_error has {len(opts.max_error)} entries, model {model.name!r} has "
+                        f"{model.n} states (give one per state, or one number for all)")  # fmt: skip
+    return opts
 
 
 def _initial_sets(value, dim, where):

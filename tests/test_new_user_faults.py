@@ -381,3 +381,25 @@ def test_an_empty_effects_list_in_a_run_file(tmp_path, capsys):
     assert cli.main(["diagnose", str(run)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "run.toml: [diagnose]" in err[0] and "no candidate effect applies" in err[0], err
+
+
+def test_a_run_file_sets_the_fallback_reach(tmp_path):
+    """Was: SynthesisOptions.reach_fallback could not be set from a run file ("unknown keys ['reach_fallback']")."""
+    import shutil
+
+    shutil.copytree(demo_run_file().parent, tmp_path / "demo")
+    run = tmp_path / "demo" / "run.toml"
+    base = run.read_text()
+    assert load_run(run).synthesis_options.reach_fallback is None
+    run.write_text(base + '\n[reach_fallback]\nalgorithm = "lin"\ntensor_order = 3\ntime_step = 0.01\n')
+    fb = load_run(run).synthesis_options.reach_fallback
+    assert isinstance(fb, rc.ReachOptions) and (fb.algorithm, fb.tensor_order, fb.time_step) == ("lin", 3, 0.01)
+    run.write_text(base + "\n[reach_fallback]\nmax_error = [0.5, 0.5]\n")
+    with pytest.raises(rc.DataError, match=r"run.toml: \[reach_fallback\] max_error has 2 entries"):
+        load_run(run)
+    run.write_text(base + "\n[reach_fallback]\nstep = 0.1\n")
+    with pytest.raises(rc.DataError, match=r"run.toml: \[reach_fallback\]: unknown options \['step'\]"):
+        load_run(run)
+    run.write_text(base.replace("[synthesis]\n", "[synthesis]\nreach_fallback = 1\n"))
+    with pytest.raises(rc.DataError, match=r"\[synthesis\] cannot hold .*use the \[reach\], \[reach_fallback\]"):
+        load_run(run)

@@ -148,6 +148,47 @@ class Effect:
         return list({"input": model.input_names, "output": model.output_names, "state": model.state_names,
                      "param": model.param_names}[self.kind])  # fmt: skip
 
+    def start_values(self, target: str, signal, t=None, x=None) -> tuple:
+        """The checked start and bounds of the parameters: ``(guess, lo, hi)``, each a float tuple.
+
+        ``signal``: the target's samples (input/output effects) or None; ``t, x``: one case's time
+        and target samples, on which a signal effect must give finite values at its start.
+
+        Raises
+        ------
+        OptionsError
+            ``guess`` or ``bounds`` not one finite number per parameter, ``lo >= hi``, or the effect's
+            signal not finite at the start (a user-written effect, named with its target).
+        """
+        where = f"effect {self.name!r} on {target!r}"
+        n = len(self.params)
+        try:
+            g = np.asarray(self.guess(signal), dtype=float).reshape(-1)
+            lo, hi = (np.asarray(b, dtype=float).reshape(-1) for b in self.bounds(signal))
+        except (TypeError, ValueError) as exc:
+            raise OptionsError(f"{where}: guess(signal) must give {n} numbers and bounds(signal) a pair (lo, hi) "
+                               f"of {n} numbers each: {exc}"[:300]) from None  # fmt: skip
+        if not g.size == lo.size == hi.size == n:
+            raise OptionsError(f"{where}: guess gives {g.size} values and bounds {lo.size} and {hi.size} for its "
+                               f"{n} parameter(s) {self.params}")  # fmt: skip
+        if not (np.all(np.isfinite(g)) and np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))):
+            raise OptionsError(f"{where}: guess and bounds must be finite, got {tuple(g)}, {tuple(lo)}, {tuple(hi)}")
+        if np.any(lo >= hi):
+            i = int(np.nonzero(lo >= hi)[0][0])
+            raise OptionsError(f"{where}: the lower bound of {self.params[i]!r} must be below the upper, got "
+                               f"[{lo[i]}, {hi[i]}]")  # fmt: skip
+        if self.signal is not None and t is not None and x is not None:
+            with np.errstate(all="ignore"):
+                out = np.asarray(self.apply_signal(t, x, np.clip(g, lo, hi)), dtype=float)
+            start = tuple(map(float, np.clip(g, lo, hi)))
+            if out.shape != np.shape(x):
+                raise OptionsError(f"{where}: its signal must give one value per sample ({np.shape(x)}), got an "
+                                   f"array of shape {out.shape} at the start {start}")  # fmt: skip
+            if not np.all(np.isfinite(out)):
+                raise OptionsError(f"{where}: its signal gives NaN or inf at the start {start} (on the first "
+                                   f"training case)")  # fmt: skip
+        return tuple(map(float, g)), tuple(map(float, lo)), tuple(map(float, hi))
+
     def apply_signal(self, t, x, theta, start: float = 0.0):
         """What the system receives (input effects) or the sensor reports (output effects) for the signal ``x``.
 

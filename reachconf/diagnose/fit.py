@@ -327,8 +327,12 @@ def fit_candidate(base, cand: Candidate, train, sigma, fit_names, options: Diagn
     labels = list(fit_names)
     for e, tgt in cand.parts:
         sig = _target_signal(base, e, tgt, train)
-        g = start.get((e.name, tgt), e.guess(sig))
-        blo, bhi = e.bounds(sig)
+        first = None
+        if e.kind in ("input", "output") and train and not e.registered:  # the library's effects are known finite
+            j = (base.input_names if e.kind == "input" else base.output_names).index(tgt)
+            first = (train[0].t, (train[0].U if e.kind == "input" else train[0].Y)[:, j])
+        g, blo, bhi = e.start_values(tgt, sig, *(first or (None, None)))
+        g = start.get((e.name, tgt), g)
         slots.append((e, tgt, len(x0), len(e.params)))
         x0 += list(g)
         lo += list(blo)

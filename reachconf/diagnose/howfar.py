@@ -124,7 +124,10 @@ def actuator_vs_process(model, fit, cases, V, k, segment, threshold: float = 1.0
         j = model.input_names.index(u)
         A = np.concatenate([d.case.signal(req[u]) for d in cases])
         B = np.concatenate([d.U[:, j] for d in cases])
-        coef = np.polyfit(A, B, 1)
+        if np.ptp(A) > 1e-12 * max(1.0, float(np.max(np.abs(A)))):
+            coef = np.polyfit(A, B, 1)
+        else:  # a constant request fixes no gain: the map keeps it and moves the request by the mean offset
+            coef = (1.0, float(np.mean(B - A)))
         maps[u] = [float(coef[0]), float(coef[1])]
     for d in cases:
         c = d.case.with_requests(maps, inputs=have)

@@ -170,7 +170,8 @@ def locate_gap(model, suite, V=None, envelope: float = 4.0, min_duration: float 
     mad = np.median(np.abs(allW - med), axis=0)
     scale = np.where(mad > 0, mad, np.maximum(np.std(allW, axis=0), 1e-12))
     width = (allW.max(axis=0) - allW.min(axis=0)) / scale
-    shares = dict(zip(names, map(float, width / width.sum())))
+    total = float(width.sum())  # 0 when no case needs a disturbance anywhere: no channel holds a share of the gap
+    shares = dict(zip(names, map(float, width / total if total > 0 else np.zeros_like(width))))
     box = {n: [float(a), float(b)] for n, a, b in zip(names, allW.min(axis=0), allW.max(axis=0))}
     sigma = 1.4826 * scale  # robust standard deviation (median absolute deviation)
     qlo, qhi = med - envelope * sigma, med + envelope * sigma

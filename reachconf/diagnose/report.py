@@ -148,6 +148,9 @@ class GapReport(JsonResult):
                 for ch, row in self.before_after.get(setname, {}).items():
                     lines.append(f"| {setname} | {ch} | [{_f(row['before'][0], '.4g')}, {_f(row['before'][1], '.4g')}] | "
                                  f"[{_f(row['after'][0], '.4g')}, {_f(row['after'][1], '.4g')}] | {_f(row['shrink'], '.2f')} |")  # fmt: skip
+            lines += ["", "Shrink: the ratio of the boxes' sizes about 0 (2 max(|lo|, |hi|), so an offset counts), each "
+                          "W size plus a floor of 5 % of its channel's disturbance-trace spread: a channel taken to "
+                          "nearly 0 shows a finite factor."]  # fmt: skip
         loc = self.where.get("location", {})
         if loc:
             lines += ["", "## Where", ""]

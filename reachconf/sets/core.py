@@ -41,7 +41,9 @@ class Interval:
     Parameters
     ----------
     lo, hi : array_like (n,) or scalars
-        Bounds, ``lo <= hi``, finite.
+        Bounds, ``lo <= hi``, finite.  A row or column vector (shape ``(1, n)`` or ``(n, 1)``) is read as
+        a vector; a matrix is refused.  ``n = 0`` gives the zero-dimensional box (the ``W`` of a model
+        without disturbances).
 
     Raises
     ------
