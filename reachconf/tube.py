@@ -243,11 +243,10 @@ class ReachTube:
             raise DataError(f"ReachTube.at: t must be one time (a number), got {t!r}"[:200]) from None
         if not np.isfinite(t):
             raise ReachError(f"time {t} is outside the tube [{self.times[0]}, {self.times[-1]}]")
-        # a time given a little off a sample (its rounding) is that sample: 1e-9 of the tube's span plus a few ulps of
-        # the time stamps; it was 1e-9 of |t|, 1.7 s for Unix time stamps (the set of the nearest of 170 samples at
-        # 100 Hz), and at least 1e-9 (every set of a tube over 1e-9 s was its first sample's)
-        span = float(self.all_times[-1] - self.all_times[0])
-        tol = 1e-9 * span + stamp_rounding(t, self.all_times[0], self.all_times[-1])
+        # a time off a sample by its stamps' rounding (a few ulps) is that sample; any further off, it gets the
+        # time-interval sets around it, which hold the state at every time of their step.  It was 1e-9 of the tube's
+        # span: 1e-5 s on a 10,000-s tube, where a state moving at 1000 units/s left the sample's set it was given
+        tol = stamp_rounding(t, self.all_times[0], self.all_times[-1])
         k = int(np.argmin(np.abs(self.times - t)))
         if abs(self.times[k] - t) <= tol:
             return self.time_point_sets[k]
@@ -338,6 +337,9 @@ class ReachTube:
             raise DataError(f"Y has {Y.shape[0]} rows for {times.size} times")
         if not np.all(np.isfinite(Y)):
             raise DataError("Y contains NaN or inf")
+        if output and self.model is None:
+            raise ReachError("this tube has no model attached (loaded from a file), so its outputs are unknown: "
+                             "check states (output=False), or compute the tube again with reachconf.reach")  # fmt: skip
         inside = np.zeros(times.size, dtype=bool)
         for i, t in enumerate(times):
             S = self.at(t)

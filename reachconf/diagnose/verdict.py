@@ -120,7 +120,10 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
                       f"loss {100 * abs(g):.0f} % {'below' if g >= 0 else 'above'} base, z = "
                       f"{best_entry['z_vs_base']:.1f}; naming "
                       f"needs z >= {record['thresholds']['z_name']:g} and a loss reduction of at least "
-                      f"{100 * record['thresholds']['min_improvement']:.0f} %{_route(record['thresholds'])}{bound})")  # fmt: skip
+                      f"{100 * record['thresholds']['min_improvement']:.0f} %{_route(record['thresholds'])}"
+                      + ("; a model with two effects needs that against each of its parts too (the model with the "
+                         "other effect alone), not only against the base" if len(best_entry.get("parts") or ()) > 1 else "")
+                      + f"{bound})")  # fmt: skip
     named = record["named"]
     tests = record.get("tests", [])
     gain = ", ".join(f"{100 * t['gain']:.0f} % below {t['against']} (z = {t['z']:.1f}"

@@ -38,13 +38,9 @@ The cache folder is ``$REACHCONF_CACHE`` if set, else the user cache folder
 
 from __future__ import annotations
 
-import hashlib
-import importlib.metadata
-import importlib.util
-import io
 import re
-import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from functools import partial
 from itertools import permutations
@@ -53,9 +49,8 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-import reachconf_kernels
 from reachconf.errors import ModelError
-from reachconf.io.atomic import atomic_write
+from reachconf.model.generated import BUILD_LOCK, GENERATOR_VERSION, load_entry, model_hash, package_version, write_entry
 from reachconf.model.printers import IntervalEmitter, point_code, real_diff
 from reachconf.model.remainders import module_tape, taylor_section, tensor_section
 from reachconf_kernels.taylor import range_enclosure
@@ -64,8 +59,6 @@ from reachconf.runner.caches import models_cache_dir
 __all__ = ["CompiledModel", "compile_model", "cache_dir", "model_hash", "generate_source", "package_version",
            "GENERATOR_VERSION", "REMAINDERS"]  # fmt: skip
 
-#: Bump when the generated code changes meaning: old cache entries are then ignored.
-GENERATOR_VERSION = "5"
 #: ways to bound the Lagrange remainders (see the module docstring)
 REMAINDERS = ("taylor", "tensor")
 
@@ -146,65 +139,6 @@ class CompiledModel:
 # ---------------------------------------------------------------------------
 # public entry point
 # ---------------------------------------------------------------------------
-def _kernel_fingerprint() -> str:
-    """Hash of the kernel sources the generated code calls and of the generator's own sources.
-
-    numba's on-disk cache of the generated module links against the compiled
-    interval and Taylor kernels; when they change, the generated module must be
-    rebuilt in a fresh folder or numba reports "unresolved symbol".  A change
-    of the generator or of the tape recorder changes the generated code.
-    """
-    h = hashlib.sha256()
-    folder = Path(reachconf_kernels.__file__).parent
-    for name in ("interval.py", "taylor.py", "taylor_rules.py", "remainder.py", "signatures.py", "__init__.py"):
-        h.update((folder / name).read_bytes())
-    for name in ("codegen.py", "tape.py", "remainders.py", "printers.py"):
-        h.update((Path(__file__).parent / name).read_bytes())
-    return h.hexdigest()[:16]
-
-
-def package_version() -> str:
-    """The installed version of reachconf (from its metadata; ``"0+unknown"`` if it is not installed)."""
-    try:
-        return importlib.metadata.version("reachconf")
-    except importlib.metadata.PackageNotFoundError:  # pragma: no cover - a plain source checkout
-        return "0+unknown"
-
-
-def model_hash(model, order: int, remainder: str = "taylor") -> str:
-    """Hash of what the generated code of ``model`` depends on (cache file name).
-
-    Parameters
-    ----------
-    model : reachconf.Model
-    order : {2, 3}
-    remainder : {"taylor", "tensor"}
-
-    Returns
-    -------
-    str
-        20 hexadecimal digits.
-    """
-    h = hashlib.sha256()
-    for part in (
-        GENERATOR_VERSION,
-        package_version(),
-        _kernel_fingerprint(),
-        str(order),
-        remainder,
-        repr(model.state_names),
-        repr(model.input_names),
-        repr(model.disturbance_names),
-        repr(model.param_names),
-        repr(model.output_names),
-        *(sp.srepr(e) for e in model.f_expr),
-        *(sp.srepr(e) for e in model.h_expr),
-    ):
-        h.update(part.encode())
-        h.update(b"\0")
-    return h.hexdigest()[:20]
-
-
 def compile_model(model, order: int = 2, remainder: str = "taylor") -> CompiledModel:
     """Generate (or find in the cache), import and compile the model's functions.
 
@@ -221,6 +155,11 @@ def compile_model(model, order: int = 2, remainder: str = "taylor") -> CompiledM
     -------
     CompiledModel
     """
+    with BUILD_LOCK:  # one build at a time per process: threads share the generated module (generated.py)
+        return _compile_model(model, order, remainder)
+
+
+def _compile_model(model, order: int, remainder: str) -> CompiledModel:
     if order not in (2, 3):
         raise ModelError(f"order must be 2 or 3, got {order!r}")
     if remainder not in REMAINDERS:
@@ -236,31 +175,19 @@ def compile_model(model, order: int = 2, remainder: str = "taylor") -> CompiledM
     meta_path = folder / f"{modname}.npz"
     from_cache = path.exists() and meta_path.exists()
     if not from_cache:
-        try:
-            source, meta = generate_source(model, order, remainder)
-        except ModelError:
-            raise
-        except Exception as exc:  # e.g. sympy cannot print the derivative of floor: name the model, not the printer
-            hint = ("a constant overflows float64 (|c| > 1.8e308): rescale the model" if isinstance(exc, OverflowError)
-                    else "write the dynamics with +, -, *, /, powers, sqrt, exp, log, sin, cos, tan, atan, tanh, Abs, Min, Max")
-            raise ModelError(f"model {model.name!r}: cannot generate code for its derivatives "
-                             f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); {hint}") from None
-        atomic_write(path, source)
-        buf = io.BytesIO()
-        np.savez(buf, **meta)
-        atomic_write(meta_path, buf.getvalue())
+        _generate(model, order, remainder, path, meta_path)
     t_gen = time.perf_counter() - t0
-    module = sys.modules.get(modname)
-    if module is None:
-        spec = importlib.util.spec_from_file_location(modname, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[modname] = module
-        try:
-            spec.loader.exec_module(module)
-        except Exception:
-            sys.modules.pop(modname, None)
-            raise
-    meta = np.load(meta_path, allow_pickle=False)
+    try:
+        module, meta = load_entry(modname, path, meta_path)
+    except Exception as exc:  # a damaged cache entry (cut off by a full disk, edited): generate it again, once
+        if not from_cache:
+            raise ModelError(f"model {model.name!r}: the generated code {path} does not load "
+                             f"({type(exc).__name__}: {exc})"[:400]) from None  # fmt: skip
+        warnings.warn(f"model {model.name!r}: the cached code {path.name} was damaged ({type(exc).__name__}); "
+                      f"generating it again", RuntimeWarning, stacklevel=2)  # fmt: skip
+        for f in (path, meta_path):
+            f.unlink(missing_ok=True)
+        return compile_model(model, order, remainder)
     guards = [str(g) for g in meta["guards"]] if "guards" in meta else []
     tape = module_tape(module)
     return CompiledModel(
@@ -289,6 +216,21 @@ def compile_model(model, order: int = 2, remainder: str = "taylor") -> CompiledM
         remainder=remainder,
         tape=tape,
     )
+
+
+def _generate(model, order: int, remainder: str, path: Path, meta_path: Path) -> None:
+    """Write the model's generated source and its metadata (atomically) to the cache."""
+    try:
+        source, meta = generate_source(model, order, remainder)
+    except ModelError as exc:  # in the user's names: the generator's symbols are s_<name>
+        text = re.sub(r"\bs_(\w+)", r"\1", str(exc))
+        raise ModelError(text if text.startswith("model ") else f"model {model.name!r}: {text}") from None
+    except Exception as exc:  # e.g. sympy cannot print the derivative of floor: name the model, not the printer
+        hint = ("a constant overflows float64 (|c| > 1.8e308): rescale the model" if isinstance(exc, OverflowError)
+                else "write the dynamics with +, -, *, /, powers, sqrt, exp, log, sin, cos, tan, atan, tanh, Abs, Min, Max")
+        raise ModelError(f"model {model.name!r}: cannot generate code for its derivatives "
+                         f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); {hint}") from None
+    write_entry(path, meta_path, source, meta)
 
 
 # ---------------------------------------------------------------------------

@@ -46,6 +46,7 @@ import sympy as sp
 
 from reachconf.errors import ModelError
 from reachconf.model.codegen import compile_model
+from reachconf.model.names import call_with_symbols, model_expression
 from reachconf.model.recipe import rebuild_model
 
 __all__ = ["Model", "Symbols", "require_model"]
@@ -107,6 +108,8 @@ def _names(value, what: str) -> tuple[str, ...]:
             raise ModelError(f"{what}: {name!r} is not a valid signal name (use a Python identifier)")
         if name.startswith("_"):
             raise ModelError(f"{what}: {name!r} starts with '_', which is reserved (use a name without it)")
+        if name == "t" and what in ("inputs", "outputs"):  # columns of a test case, beside its time column t
+            raise ModelError(f"{what}: 't' is the time column of test cases; give the signal another name")
     if len(set(names)) != len(names):
         dup = sorted({n for n in names if names.count(n) > 1})
         raise ModelError(f"{what}: duplicate names {dup}")
@@ -216,35 +219,14 @@ class Model:
         return value
 
     def _sympify(self, expr, where: str) -> sp.Expr:
-        try:
-            expr = sp.sympify(expr, locals=dict(self._symbols))
-        except (sp.SympifyError, TypeError) as exc:
-            raise ModelError(f"model {self.name!r}: {where} is not a valid expression: {exc}") from None
-        if not isinstance(expr, sp.Expr):
-            raise ModelError(f"model {self.name!r}: {where} is not a scalar expression: {expr!r}")
-        if expr.has(sp.nan, sp.oo, -sp.oo, sp.zoo) or any(abs(a) > 1.7976931348623157e308 for a in expr.atoms(sp.Number)):
-            raise ModelError(f"model {self.name!r}: {where} is not finite (as float64): {expr}")
-        undefined = sorted({str(f.func) for f in expr.atoms(sp.core.function.AppliedUndef)})
-        if undefined:
-            raise ModelError(f"model {self.name!r}: {where} uses the undefined function(s) {undefined}; "
-                             f"write them out with +, -, *, /, powers and the usual elementary functions")  # fmt: skip
-        if expr.has(sp.Derivative, sp.Integral):
-            raise ModelError(f"model {self.name!r}: {where} holds an unevaluated derivative or integral: {expr}")
-        # Replace look-alike symbols (e.g. created without real=True) by ours.
-        subs = {}
-        for sym in expr.free_symbols:
-            own = self._symbols.get(sym.name)
-            if own is None:
-                raise ModelError(
-                    f"model {self.name!r}: {where} uses the unknown symbol {sym.name!r}; declare it as a "
-                    f"state, input, disturbance or parameter"
-                )
-            if own is not sym:
-                subs[sym] = own
-        return expr.xreplace(subs) if subs else expr
+        return model_expression(expr, self._symbols, self.param_names, where, self.name)
+
+    def _call(self, fn, what: str):
+        """``fn(self.symbols)``: a user's dynamics or outputs function, its errors named."""
+        return call_with_symbols(fn, self.symbols, what, self.name)
 
     def _state_exprs(self, dynamics) -> tuple[sp.Expr, ...]:
-        result = dynamics(self.symbols) if callable(dynamics) else dynamics
+        result = self._call(dynamics, "dynamics") if callable(dynamics) else dynamics
         n = len(self.state_names)
         if isinstance(result, Mapping):
             unknown = sorted(set(result) - set(self.state_names))
@@ -268,9 +250,9 @@ class Model:
         return tuple(self._sympify(e, f"dynamics of {s!r}") for s, e in zip(self.state_names, result))
 
     def _output_exprs(self, outputs):
-        if outputs is None:
-            return self.state_names, tuple(self._symbols[s] for s in self.state_names)
-        result = outputs(self.symbols) if callable(outputs) else outputs
+        if outputs is None:  # every state measured: the states' names are the outputs'
+            return _names(self.state_names, "outputs"), tuple(self._symbols[s] for s in self.state_names)
+        result = self._call(outputs, "outputs") if callable(outputs) else outputs
         if isinstance(result, Mapping):
             names = _names(tuple(result), "outputs")
             clash = [k for k in names if k in self.input_names + self.disturbance_names + self.param_names]

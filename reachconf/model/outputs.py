@@ -20,14 +20,14 @@ from collections.abc import Mapping
 import numpy as np
 import sympy as sp
 
-from reachconf.errors import ConformanceError, OptionsError, ReachError
+from reachconf.errors import ConformanceError, DataError, OptionsError, ReachError
 from reachconf.io.cases import case_arrays
 from reachconf.sets.core import Interval, Zonotope
 from reachconf.sets.union import SetUnion
 from reachconf_kernels.integrate import eval_outputs
 from reachconf_kernels.linsys import interval_matrix_times_zonotope
 
-__all__ = ["output_enclosure", "affine_output", "evaluate_outputs", "state_estimate", "output_index_of_states",
+__all__ = ["output_enclosure", "affine_output", "output_uses_inputs", "evaluate_outputs", "state_estimate", "output_index_of_states",
            "outputs_of_states", "state_index_of_outputs", "state_guess"]  # fmt: skip
 
 
@@ -67,6 +67,16 @@ def affine_output(model):
     return result
 
 
+def output_uses_inputs(model) -> list:
+    """The inputs that ``h(x, u)`` depends on (names, in the model's order; cached per model)."""
+    cache = model.__dict__.setdefault("_affine_cache", {})
+    if "_output_inputs" not in cache:
+        used = set().union(*(sp.sympify(e).free_symbols for e in model.h_expr)) if model.h_expr else set()
+        z = model.z_symbols[model.n : model.n + model.m]
+        cache["_output_inputs"] = [name for name, s in zip(model.input_names, z) if s in used]
+    return cache["_output_inputs"]
+
+
 def output_enclosure(model, S, u=None):
     """A zonotope (or union) enclosing ``{h(x, u) | x in S}`` (eq. 42, without V).
 
@@ -76,7 +86,8 @@ def output_enclosure(model, S, u=None):
     S : Zonotope, Interval or SetUnion
         A set of states.
     u : array_like (m,), optional
-        The known input (default zeros).
+        The known input; needed when ``h`` depends on an input (zeros would be a wrong answer), else
+        ignored (zeros).
 
     Returns
     -------
@@ -86,7 +97,12 @@ def output_enclosure(model, S, u=None):
     ------
     ReachError
         If the interval Jacobian of ``h`` is not defined over ``S``.
+    DataError
+        If ``h`` depends on an input and ``u`` is not given.
     """
+    if u is None and model.m and output_uses_inputs(model):
+        raise DataError(f"the outputs of model {model.name!r} depend on the inputs {output_uses_inputs(model)}: "
+                        f"give the inputs at the sample times (inputs=), or check states (output=False)")  # fmt: skip
     if len(S.pieces) > 1:
         return SetUnion([output_enclosure(model, p, u) for p in S.pieces])
     u = np.zeros(model.m) if u is None else np.asarray(u, dtype=float).reshape(model.m)

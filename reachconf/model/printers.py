@@ -269,8 +269,9 @@ class IntervalEmitter:
         if isinstance(expr, (sp.sign, sp.Heaviside)):  # derivatives of Abs, Min, Max (in the Jacobian of h)
             return self._step(expr)
         if isinstance(expr, sp.DiracDelta):  # a second derivative of Abs, Min or Max: the legacy tensor path only
-            raise ModelError(f"the interval code generator does not support {expr} (a second derivative of Abs, Min or "
-                             f"Max): use remainder='taylor' (the default), which bounds them")  # fmt: skip
+            raise ModelError(f"the interval code generator does not support {expr} (a derivative of sign or Heaviside, "
+                             f"or a second derivative of Abs, Min or Max): write the model without sign and Heaviside; "
+                             f"Abs, Min and Max need remainder='taylor' (the default)")  # fmt: skip
         raise ModelError(
             f"the interval code generator does not support {type(expr).__name__} (in {expr}); "
             f"rewrite the model with +, -, *, /, powers, sqrt, exp, log, sin, cos, tan, atan, tanh, Abs, Min, Max"

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from reachconf.errors import DataError
+from reachconf.errors import DataError, ModelError
 from reachconf_kernels.integrate import rk4_trace
 
 __all__ = ["simulate", "simulate_ivp", "signal_table"]
@@ -87,6 +87,9 @@ def simulate(model, x0, times, inputs=None, disturbances=None, substeps: int = 1
     ------
     DataError
         On bad times, shapes or non-finite values (with ``check``).
+    ModelError
+        When a state becomes NaN or inf (with ``check``): the model is undefined along the trajectory or
+        escapes to infinity.
     """
     if check:
         if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
@@ -101,11 +104,22 @@ def simulate(model, x0, times, inputs=None, disturbances=None, substeps: int = 1
         Wt = np.ascontiguousarray(Wt)
     f, p = model.compiled().f, model.param_vector
     if not error_estimate:
-        return rk4_trace(f, x0, U, Wt, times, p, int(substeps))
+        return _finite(model, rk4_trace(f, x0, U, Wt, times, p, int(substeps)), times, check)
     X1 = rk4_trace(f, x0, U, Wt, times, p, int(substeps))
-    X2 = rk4_trace(f, x0, U, Wt, times, p, int(2 * substeps))
+    X2 = _finite(model, rk4_trace(f, x0, U, Wt, times, p, int(2 * substeps)), times, check)
     err = np.abs(X2 - X1) * (16.0 / 15.0) + 1e-12 * (1 + np.abs(X2))
     return X2, err
+
+
+def _finite(model, X, times, check: bool):
+    """``X``, or (with ``check``) a :class:`ModelError` at the first sample where a state is NaN or inf."""
+    if check and not np.all(np.isfinite(X)):
+        k, i = (int(v[0]) for v in np.nonzero(~np.isfinite(X)))
+        raise ModelError(f"model {model.name!r}: the simulation is not finite from t = {times[k]:.6g} on (state "
+                         f"{model.state_names[i]!r} = {X[k, i]}): f is undefined there (a root or log of a negative "
+                         f"number, a division by zero) or the state escapes to infinity; check the model, x0 and "
+                         f"the inputs")  # fmt: skip
+    return X
 
 
 def simulate_ivp(model, x0, times, inputs=None, disturbances=None, rtol=1e-10, atol=1e-12, dense=None):
