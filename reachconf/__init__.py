@@ -10,7 +10,8 @@ trace and reachset conformance with minimal disturbance-set synthesis
 Every public name is imported when it is first used, so ``import reachconf``
 stays cheap.  ``reachconf.reach`` and ``reachconf.diagnose`` are the
 functions; their modules of the same names stay importable
-(``from reachconf.reach import ReachOptions``).  Modules that moved keep
+(``from reachconf.reach import ReachOptions``, ``from reachconf.diagnose import scales``; not
+``import reachconf.diagnose.scales as s``, which meets the function).  Modules that moved keep
 their old import paths (``reachconf.simulate``, ``reachconf.campaign``, ...).
 """
 
