@@ -162,3 +162,16 @@ def test_threads_share_one_build_of_a_model(tmp_path):
     for _ in range(2):  # cold cache, then warm
         out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=600)
         assert out.returncode == 0 and out.stdout.strip() == "ok", (out.stdout, out.stderr[-2000:])
+
+
+def test_signals_no_expression_uses_are_warned_about():
+    """Was: a declared disturbance the dynamics never use got no word, and synthesis returned a box of about
+    ±5e-10 for it (most often a typo in a name)."""
+    with pytest.warns(UserWarning, match=r"disturbances \['w2'\] appear in no dynamics; inputs \['u2'\] appear in no "):
+        rc.Model(name="qa_unused", states=("x",), inputs=("u", "u2"), disturbances=("w", "w2"), dynamics=["-x + u + w"])
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # an input used only by the outputs is used
+        rc.Model(name="qa_used", states=("x",), inputs=("u",), disturbances=("w",), dynamics=["-x + w"],
+                 outputs={"y": "x + u"})  # fmt: skip

@@ -46,7 +46,7 @@ import sympy as sp
 
 from reachconf.errors import ModelError
 from reachconf.model.codegen import compile_model
-from reachconf.model.names import call_with_symbols, model_expression
+from reachconf.model.names import call_with_symbols, model_expression, warn_unused_signals
 from reachconf.model.recipe import rebuild_model
 
 __all__ = ["Model", "Symbols", "require_model"]
@@ -207,6 +207,7 @@ class Model:
             outputs = getattr(self, "outputs", None)
         self.output_names, self.h_expr = self._output_exprs(outputs)
         self.params = MappingProxyType({k: self._check_param(k, v) for k, v in param_values.items()})
+        warn_unused_signals(self)
 
     # ------------------------------------------------------------------ build
     def _check_param(self, key, value) -> float:

@@ -11,12 +11,13 @@ Two ways a model can silently mean something else than its author wrote:
 from __future__ import annotations
 
 import re
+import warnings
 
 import sympy as sp
 
 from reachconf.errors import ModelError
 
-__all__ = ["model_expression", "call_with_symbols", "check_text_names", "check_assumptions"]
+__all__ = ["model_expression", "call_with_symbols", "warn_unused_signals", "check_text_names", "check_assumptions"]
 
 _IDENT = re.compile(r"(?<![\w.])([A-Za-z_]\w*)")
 #: constants a model may use by their sympy names
@@ -129,3 +130,18 @@ def call_with_symbols(fn, symbols, what: str, model_name: str):
         hint = ("use sympy's functions (sympy.sin, sympy.exp, ...), not numpy's or math's, and no Python if on a "
                 "symbol (sympy.Min/Max/Abs instead)")  # fmt: skip
         raise ModelError(f"model {model_name!r}: {what}(symbols) raised {type(exc).__name__}: {exc}; {hint}"[:500]) from None
+
+
+def warn_unused_signals(model) -> None:
+    """A ``UserWarning`` for disturbances the dynamics do not use and inputs no expression uses: their sets
+    mean nothing (a synthesized W gives such a channel width 0), which is most often a typo in a name."""
+    in_f = set().union(*(e.free_symbols for e in model.f_expr))
+    in_h = set().union(*(e.free_symbols for e in model.h_expr)) if model.h_expr else set()
+    sym = model._symbols
+    w = [n for n in model.disturbance_names if sym[n] not in in_f]
+    u = [n for n in model.input_names if sym[n] not in in_f | in_h]
+    if w or u:
+        what = "; ".join(part for part in (f"disturbances {w} appear in no dynamics" if w else "",
+                                           f"inputs {u} appear in no dynamics or output" if u else "") if part)
+        warnings.warn(f"model {model.name!r}: {what} (their sets mean nothing: check the names)", UserWarning,
+                      stacklevel=3)  # fmt: skip
