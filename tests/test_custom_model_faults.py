@@ -175,3 +175,37 @@ def test_signals_no_expression_uses_are_warned_about():
         warnings.simplefilter("error")  # an input used only by the outputs is used
         rc.Model(name="qa_used", states=("x",), inputs=("u",), disturbances=("w",), dynamics=["-x + w"],
                  outputs={"y": "x + u"})  # fmt: skip
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="fork")
+def test_a_forked_child_builds_while_a_parent_thread_holds_the_build_lock():
+    """The build lock of a thread is not inherited locked by a forked child (the diagnosis forks its fit workers)."""
+    import multiprocessing as mp
+    import threading
+
+    from reachconf.model import generated
+
+    held, release = threading.Event(), threading.Event()
+
+    def hold():
+        with generated.BUILD_LOCK:
+            held.set()
+            release.wait(60)
+
+    t = threading.Thread(target=hold)
+    t.start()
+    held.wait(10)
+    try:
+        ctx = mp.get_context("fork")
+        q = ctx.Queue()
+        p = ctx.Process(target=_child_build, args=(q,))
+        p.start()
+        p.join(120)
+        assert p.exitcode == 0 and q.get(timeout=5) == -1.0
+    finally:
+        release.set()
+        t.join()
+
+
+def _child_build(q):
+    q.put(float(rc.Model(name="qa_fork_child", states=("x",), dynamics=["-x"]).f([1.0])[0]))

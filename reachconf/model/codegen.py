@@ -50,7 +50,8 @@ import numpy as np
 import sympy as sp
 
 from reachconf.errors import ModelError
-from reachconf.model.generated import BUILD_LOCK, GENERATOR_VERSION, load_entry, model_hash, package_version, write_entry
+from reachconf.model import generated
+from reachconf.model.generated import GENERATOR_VERSION, load_entry, model_hash, package_version, write_entry
 from reachconf.model.printers import IntervalEmitter, point_code, real_diff
 from reachconf.model.remainders import module_tape, taylor_section, tensor_section
 from reachconf_kernels.taylor import range_enclosure
@@ -155,7 +156,7 @@ def compile_model(model, order: int = 2, remainder: str = "taylor") -> CompiledM
     -------
     CompiledModel
     """
-    with BUILD_LOCK:  # one build at a time per process: threads share the generated module (generated.py)
+    with generated.BUILD_LOCK:  # one build at a time per process: threads share the generated module (generated.py)
         return _compile_model(model, order, remainder)
 
 

@@ -14,6 +14,7 @@ import hashlib
 import importlib.metadata
 import importlib.util
 import io
+import os
 import sys
 import threading
 from pathlib import Path
@@ -29,8 +30,18 @@ __all__ = ["BUILD_LOCK", "GENERATOR_VERSION", "model_hash", "package_version", "
 #: Bump when the generated code changes meaning: old cache entries are then ignored.
 GENERATOR_VERSION = "5"
 
-#: held while a model is generated, imported or compiled (re-entrant: a damaged entry is built again inside)
+#: held while a model is generated, imported or compiled (re-entrant: a damaged entry is built again inside);
+#: read it as ``generated.BUILD_LOCK``: a forked child gets a new one (the parent's may be held by another thread)
 BUILD_LOCK = threading.RLock()
+
+
+def _new_lock_in_child() -> None:
+    global BUILD_LOCK
+    BUILD_LOCK = threading.RLock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_new_lock_in_child)
 
 #: what every generated module defines
 _FUNCTIONS = ("f", "jac", "h", "jac_h", "hess", "h_iv", "jac_h_iv", "lagrange_iv")
