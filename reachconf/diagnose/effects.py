@@ -144,7 +144,13 @@ class Effect:
     def applicable(self, model) -> list:
         """Targets of ``model`` this effect can act on."""
         if self.targets is not None:
-            return list(self.targets(model))
+            try:
+                found = list(self.targets(model))
+            except TypeError as exc:  # not iterable, or a wrong signature
+                raise OptionsError(f"effect {self.name!r}: targets(model) must give a list of names: {exc}") from None
+            if not all(isinstance(t, str) for t in found):
+                raise OptionsError(f"effect {self.name!r}: targets(model) must give names (str), got {found!r}"[:300])
+            return found
         return list({"input": model.input_names, "output": model.output_names, "state": model.state_names,
                      "param": model.param_names}[self.kind])  # fmt: skip
 

@@ -68,3 +68,14 @@ def test_a_constant_request_maps_by_its_offset_without_a_rank_warning():
         rep = rc.diagnose(m, rc.TestSuite(cases), effects=["input_offset"], progress=False, workers=1)
     k, c = rep.where["actuator_vs_process"]["request_map"]["u"]
     assert k == 1.0 and np.isfinite(c)
+
+
+def test_a_custom_effects_targets_must_be_names(oscillator):
+    """Was: targets(model) giving numbers or None ended in a TypeError deep in the candidate list."""
+    m, suite = oscillator
+    for targets, message in ((lambda model: [0], r"targets\(model\) must give names \(str\), got \[0\]"),
+                             (lambda model: None, r"targets\(model\) must give a list of names")):  # fmt: skip
+        e = Effect("odd_targets", "input", ("c",), lambda x: (0.0,), lambda x: ((-1.0,), (1.0,)),
+                   signal=lambda t, u, th: u + th[0], targets=targets)  # fmt: skip
+        with pytest.raises(OptionsError, match=message):
+            rc.diagnose(m, suite, effects=[e], progress=False, workers=1)
