@@ -12,7 +12,7 @@ Example::
     [sets]                             # intervals as [lo, hi] per channel, in the model's order
     W = [[-0.05, 0.05], [-0.05, 0.05], [-0.01, 0.01], [-0.1, 0.1], [-0.1, 0.1], [-0.05, 0.05]]
     V = [[-0.02, 0.02], ...]
-    X0 = [[...], ...]                  # optional; default eq. 67 (first sample ⊕ V)
+    X0 = [[...], ...]                  # optional; default eq. 67 (first sample minus V)
     [sets.X0]                          # or one initial set per case, by case name
     LC_1 = [[...], ...]
     [sets.unmeasured]                  # or eq. 67 for the states that are outputs, these bounds for the others
@@ -39,7 +39,7 @@ one reach; ``segment_step`` (at most the length) starts one every that many seco
 windows).  They need eq. 67's initial sets (no ``[sets] X0``); ``diagnose`` ignores them.
 
 ``[sets] unmeasured`` is for a model with states that are not outputs: each case (or segment) starts from its
-first sample plus V for the measured states and from the given bounds for the others
+first sample minus V for the measured states and from the given bounds for the others
 (:func:`reachconf.conformance.initial_set`); with segments the bounds must hold at every segment's start.
 ``[sets.X0]`` as a table gives each case its own initial set (every checked case needs one).  Neither is used by
 ``diagnose``.

@@ -41,8 +41,11 @@ class ReachsetResult(JsonResult):
     ----------
     case : str
     conformant : bool
-        Every measurement lies in ``h(R(t_i)) ⊕ V``; False also when the
-        reachability analysis failed (then ``verdict`` is undecided).
+        Every measurement lies in ``h(R(t_i)) ⊕ V`` with ``R`` the *computed*
+        (over-approximating) reachable set — the set a verification with these
+        options would use (eq. 43), not a proof about the exact one (trace
+        conformance gives that); False also when the reachability analysis
+        failed (then ``verdict`` is undecided).
     first_violation_time : float or None
         First sample outside its set; when undecided, the time the reach
         failed.
@@ -155,12 +158,13 @@ class ReachsetResult(JsonResult):
 
 
 def initial_set(model, case, V, unmeasured=None) -> Interval | Zonotope:
-    """Eq. 67: ``X(t_1) ⊕ V`` in state space.
+    """Eq. 67: the states the first measurement allows, ``X(t_1) ⊕ (−V)`` in state space.
 
-    If every state is an output, the measured first sample plus V.  If ``h``
-    is affine with full column rank ``C``, the preimage
-    ``C^+ (y_1 - D u_1 - e - V)``.  Otherwise pass ``X0`` explicitly, or
-    ``unmeasured``.
+    A measurement is ``y = h(x) + v`` with ``v`` in V, so the state is ``y − v``: if every state is
+    an output, the measured first sample minus V (the report writes ``⊕ V`` for its symmetric V; for an
+    asymmetric V, ``[0, 0.2]`` say, the states lie below the measurement, not above it).  If ``h``
+    is affine with full column rank ``C``, the preimage ``C^+ (y_1 - D u_1 - e - V)``.  Otherwise pass
+    ``X0`` explicitly, or ``unmeasured``.
 
     Parameters
     ----------
@@ -170,7 +174,7 @@ def initial_set(model, case, V, unmeasured=None) -> Interval | Zonotope:
     unmeasured : mapping of state name to (lo, hi), optional
         Bounds of the states that are not outputs (e.g. a box around the start
         of the case's disturbance trace, ``TraceResult.x0``); the states that
-        are outputs take eq. 67's first sample plus V.  Every state that is not
+        are outputs take eq. 67's first sample minus V.  Every state that is not
         an output must be given, and only those.
 
     Returns
@@ -185,7 +189,7 @@ def initial_set(model, case, V, unmeasured=None) -> Interval | Zonotope:
     direct = output_index_of_states(model)
     if direct is not None:
         x1 = Y[0, direct]
-        return Interval(x1 + V_lo[direct], x1 + V_hi[direct])
+        return Interval(x1 - V_hi[direct], x1 - V_lo[direct])
     aff = affine_output(model)
     if aff is not None and np.linalg.matrix_rank(aff[0]) == model.n:
         C, D, e = aff
@@ -201,11 +205,11 @@ def initial_set(model, case, V, unmeasured=None) -> Interval | Zonotope:
 
 
 def _partly_measured(model, y1, V_lo, V_hi, unmeasured) -> Interval:
-    """Eq. 67 for the states that are outputs, the given bounds for the others."""
+    """Eq. 67 for the states that are outputs (the measurement minus V), the given bounds for the others."""
     bounds = unmeasured_bounds(model, unmeasured)
     lo, hi = np.empty(model.n), np.empty(model.n)
     for j, i in outputs_of_states(model).items():
-        lo[j], hi[j] = y1[i] + V_lo[i], y1[i] + V_hi[i]
+        lo[j], hi[j] = y1[i] - V_hi[i], y1[i] - V_lo[i]
     for j, (lo_j, hi_j) in bounds.items():
         lo[j], hi[j] = lo_j, hi_j
     return Interval(lo, hi)
@@ -243,7 +247,7 @@ def reachset_conformance(model, case, W, V, X0=None, options=None, keep_tube: bo
     V : Interval or Zonotope
         Additive measurement-error set.
     X0 : Interval or Zonotope, optional
-        Initial set; default eq. 67, ``X(t_1) ⊕ V`` (:func:`initial_set`).
+        Initial set; default eq. 67, ``X(t_1) ⊕ (−V)`` (:func:`initial_set`).
     options : ReachOptions, optional
         Default ``ReachOptions()`` (``"adaptive"``: its steps end at every
         sample time).

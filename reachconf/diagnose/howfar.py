@@ -157,8 +157,7 @@ def reach_tubes(model, fits_boxes, case_of, horizon, V):
         direct = output_index_of_states(fit.model)
         if direct is None:
             return []
-        vr = 0.5 * (V.hi - V.lo)[direct]
-        X0 = Interval(Y[0, direct] - vr, Y[0, direct] + vr)
+        X0 = Interval(Y[0, direct] - V.hi[direct], Y[0, direct] - V.lo[direct])  # eq. 67: y = x + v
         try:
             tube = reach(fit.model, X0, t, inputs=U, W=Interval(box[0], box[1]), options=ReachOptions(progress=False))
         except ReachconfError as exc:
