@@ -50,9 +50,16 @@ def wrapping_diagnosis(model, t: float) -> str:
             return ""
         A = affine_parts(model)[0][:, : model.n]
         lognorm = float(np.max(np.diag(A) + np.sum(np.abs(A), axis=1) - np.abs(np.diag(A))))
-        abscissa = float(np.max(np.linalg.eigvals(A).real))
+        eig = np.linalg.eigvals(A)
+        abscissa = float(np.max(eig.real))
+        norm, spectral = float(np.max(np.abs(A))), float(np.max(np.abs(eig)))
     except Exception:  # noqa: BLE001 - only a hint: the message stands without it
         return ""
+    if np.isfinite(norm) and norm > 1e6 * max(spectral, 1.0):  # e.g. a' = -a + 1e-9 b, b' = 1e9 a - b/2
+        return (f" The model is linear, so it has no abstraction error: its matrix A has an entry of {norm:.3g} "
+                f"while its eigenvalues are at most {spectral:.3g} in size, so its states' scales differ widely and "
+                f"the series of e^(A dt) overflows. Rescale the states: new units in which A's entries are of "
+                f"similar size.")
     if not (np.isfinite(lognorm) and lognorm * max(t, 0.0) > 30.0):
         return ""
     return (f" The model is linear, so it has no abstraction error: the set grew by the wrapping effect of the order "

@@ -209,3 +209,15 @@ def test_a_forked_child_builds_while_a_parent_thread_holds_the_build_lock():
 
 def _child_build(q):
     q.put(float(rc.Model(name="qa_fork_child", states=("x",), dynamics=["-x"]).f([1.0])[0]))
+
+
+def test_a_badly_scaled_linear_model_is_told_to_rescale():
+    """Was: a linear model whose states differ by 1e9 in scale failed at t = 0 with advice for nonlinear models
+    (tensor_order=3, splitting), which cannot help; in rescaled units it reaches."""
+    m = rc.Model(name="qa_scaled_lin", states=["a", "b"], dynamics=["-a + 1e-9*b", "-0.5*b + 1e9*a"])
+    X0 = rc.Interval([1e-6, 999.0], [1.1e-6, 1001.0])
+    for algorithm in ("adaptive", "lin"):
+        with pytest.raises(rc.ReachError, match=r"The model is linear.*an entry of 1e\+09 .* Rescale the states"):
+            rc.reach(m, X0, np.linspace(0, 1, 6), options=rc.ReachOptions(algorithm=algorithm))
+    units = rc.Model(name="qa_scaled_lin_units", states=["A", "b"], dynamics=["-A + 1e-3*b", "-0.5*b + 1e3*A"])
+    assert rc.reach(units, rc.Interval([1.0, 999.0], [1.1, 1001.0]), np.linspace(0, 1, 6)).final_set().dim == 2
