@@ -485,8 +485,7 @@ def optctrl_trace(model, t, U, Y, W_lo, W_hi, V_lo, V_hi, x0, W, options, x0_fix
             message = f"Alg. 2: the simulated trace diverged in iteration {it}"
             break
         e = prob.linearisation_error(X, X_tilde)
-        w_step = float(np.max(np.abs(DW) / prob.sw)) if DW.size else 0.0  # a model without disturbances: no w
-        if e <= max(options.epsilon, 1e-12) or (e <= 1e-3 and w_step <= 1e-6):
+        if e <= max(options.epsilon, 1e-12) or (e <= 1e-3 and (not DW.size or np.max(np.abs(DW) / prob.sw) <= 1e-6)):
             message = f"Alg. 2 converged in {it} iterations"
             ok = True
             break

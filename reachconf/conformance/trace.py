@@ -29,6 +29,7 @@ import numpy as np
 from reachconf.budget import TimeBudget, check_memory, check_time_limit
 from reachconf.checks import check_field_types, check_options
 from reachconf.conformance.windows import (
+    PERSTEP_NO_PROOF,
     describe_violation,
     disturbance_trace_in_windows,
     keep_step,
@@ -172,12 +173,10 @@ class TraceResult(JsonResult):
     disturbance_names, output_names : tuple of str
         The model's channel names (labels of :meth:`plot`).
     verdict : Verdict
-        ``CONFORMANT`` (the simulated trace keeps every bound), ``NOT_CONFORMANT``
-        (the disturbance trace Alg. 1 found leaves W or V once simulated: the
-        report's verdict, though another trace might exist; ``UNDECIDED`` with
-        ``method="perstep"``, whose fit is no search within V), or ``UNDECIDED``
-        (no trace to judge: the simulation diverged or Alg. 2's QP found no
-        trace; ``message`` says why).
+        ``CONFORMANT`` (the simulated trace keeps every bound), ``NOT_CONFORMANT`` (the trace Alg. 1
+        found leaves W or V once simulated: the report's verdict, though another trace might exist;
+        ``UNDECIDED`` with ``method="perstep"``, no search within V), or ``UNDECIDED`` (no trace to
+        judge: the simulation diverged or Alg. 2's QP found no trace; ``message`` says why).
     reason : str
         Why that method (``method="auto"``: the per-step trace stayed within
         W and V, or where it left them).
@@ -494,13 +493,8 @@ def trace_conformance(model, case, W, V, method: str = "auto", options: TraceOpt
     label, reason, message, search_failed = summarize_windows(info, method)
     res = simulate_verdict(model, name, t, U, Y, x0, Wt, W_lo, W_hi, V_lo, V_hi, options.substeps, label, t_start,
                            message, search_failed=search_failed, keep_samples=options.keep_samples)  # fmt: skip
-    res.reason = reason
-    res.windows = [tuple(w[:3]) for w in info["windows"]]
-    if method == "perstep" and res.verdict is Verdict.NOT_CONFORMANT:
-        # eqs. 26/27 take each step's w from the measured states alone, noise included, without V's freedom: a
-        # trace of theirs that misses a bound proves nothing (true noisy traces missed W 23-fold; Alg. 2 found one)
-        res.verdict = Verdict.UNDECIDED
-        res.message += ("; undecided: the per-step fit (eqs. 26/27) uses the measurements as states, so its trace "
-                        "missing a bound is no proof; method='auto' or 'optctrl' searches within V")  # fmt: skip
+    res.reason, res.windows = reason, [tuple(w[:3]) for w in info["windows"]]
+    if method == "perstep" and res.verdict is Verdict.NOT_CONFORMANT:  # no proof: see PERSTEP_NO_PROOF
+        res.verdict, res.message = Verdict.UNDECIDED, res.message + PERSTEP_NO_PROOF
     return res
 

@@ -375,6 +375,11 @@ def keep_step(K: int, keep_samples: int) -> int:
     return max(1, math.ceil(K / max(1, int(keep_samples))))
 
 
+#: why a per-step trace that misses a bound is "undecided" (eqs. 26/27 fit w to the noisy measured states)
+PERSTEP_NO_PROOF = ("; undecided: the per-step fit (eqs. 26/27) uses the measurements as states, so its trace missing "
+                    "a bound is no proof; method='auto' or 'optctrl' searches within V")
+
+
 def summarize_windows(info, method):
     """``(method label, reason, message, search failed)`` of :func:`disturbance_trace_in_windows`'s ``info``.
 

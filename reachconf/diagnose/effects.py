@@ -3,19 +3,19 @@
 An :class:`Effect` is a transformation of a model with parameters to fit,
 applied to a named input, output, state or parameter (its *target*):
 
-==================  ========  ===========================================================
-name                target    what the real system does that the model does not
-==================  ========  ===========================================================
-``actuator_lag``    input     ``u_real' = (u - u_real) / tau`` (first-order actuator)
-``dead_time``       input     ``u_real(t) = u(t - T)`` (transport delay)
-``input_offset``    input     ``u_real = u + c``
-``input_scale``     input     ``u_real = k u`` (applied after an offset: ``k (u + c)``, Table 2)
-``output_offset``   output    ``y_measured = y + c`` (sensor bias)
-``output_scale``    output    ``y_measured = k y``
-``tire_saturation`` param     every force term linear in a stiffness ``c`` saturates:
-                              ``c s -> c s / sqrt(1 + (c s / F)^2)`` (smooth, odd, limit F)
-``drag``            state     ``v' -> v' - c_d v |v|`` (quadratic speed term)
-==================  ========  ===========================================================
+===================  ========  ===========================================================
+name                 target    what the real system does that the model does not
+===================  ========  ===========================================================
+``actuator_lag``     input     ``u_real' = (u - u_real) / tau`` (first-order actuator)
+``dead_time``        input     ``u_real(t) = u(t - T)`` (transport delay)
+``input_offset``     input     ``u_real = u + c``
+``input_scale``      input     ``u_real = k u`` (applied after an offset: ``k (u + c)``, Table 2)
+``output_offset``    output    ``y_measured = y + c`` (sensor bias)
+``output_scale``     output    ``y_measured = k y``
+``tire_saturation``  param     every force term linear in a stiffness ``c`` saturates:
+                               ``c s -> c s / sqrt(1 + (c s / F)^2)`` (smooth, odd, limit F)
+``drag``             state     ``v' -> v' - c_d v |v|`` (quadratic speed term)
+===================  ========  ===========================================================
 
 A lag's state at the start of a case is not known (a case cut from a longer
 run starts with the actuator in motion): the diagnosis fits it per case

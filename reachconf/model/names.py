@@ -137,7 +137,7 @@ def warn_unused_signals(model) -> None:
     mean nothing (a synthesized W gives such a channel width 0), which is most often a typo in a name."""
     in_f = set().union(*(e.free_symbols for e in model.f_expr))
     in_h = set().union(*(e.free_symbols for e in model.h_expr)) if model.h_expr else set()
-    sym = model._symbols
+    sym = dict(zip(model.state_names + model.input_names + model.disturbance_names, model.z_symbols))
     w = [n for n in model.disturbance_names if sym[n] not in in_f]
     u = [n for n in model.input_names if sym[n] not in in_f | in_h]
     if w or u:
