@@ -22,6 +22,10 @@ def test_a_time_near_a_sample_gets_sets_that_hold_the_state_then():
         assert tube.at(t).contains([1000.0 * t, np.exp(-t)]), dt
         assert tube.contains([t], [[1000.0 * t, 0.0]], output=False).conformant, dt
     assert tube.at(5000.0) is tube.time_point_sets[5]
+    # and no looser than needed: just after a sample, the one step's time-interval set (x spans that step's 1e6)
+    assert tube.at(5000.0 + 2e-6) is tube.time_interval_sets[int(np.searchsorted(tube.time_intervals[:, 1], 5000.0 + 2e-6))]
+    width = np.ptp(tube.bounds()[:, :, 0], axis=1)
+    assert width.max() < 1.01e6 and np.ptp([tube.time_point_sets[5].interval().lo[0], tube.time_point_sets[5].interval().hi[0]]) < 1e-2
     assert tube.at(np.nextafter(5000.0, 6000.0)) is tube.time_point_sets[5]  # a stamp's rounding is the sample
     with pytest.raises(rc.ReachError, match="outside the tube"):
         tube.at(10000.0 + 1e-6)
