@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import re
 import warnings
+from functools import lru_cache
 
 import sympy as sp
 
@@ -37,9 +38,8 @@ def check_text_names(text: str, declared, where: str, model_name: str) -> None:
         name = m.group(1)
         if name in declared or name in _CONSTANTS:
             continue
-        try:
-            meaning = sp.sympify(name)
-        except (sp.SympifyError, TypeError, ValueError, SyntaxError, AttributeError):
+        meaning = _sympy_meaning(name)
+        if meaning is None:
             continue  # not sympy's: the unknown-symbol check names it
         called = text[m.end() :].lstrip().startswith("(")
         if isinstance(meaning, sp.Symbol):
@@ -56,6 +56,15 @@ def check_text_names(text: str, declared, where: str, model_name: str) -> None:
                              + (" (or write exp(1))" if name == "E" else ""))  # fmt: skip
 
 
+@lru_cache(maxsize=1024)
+def _sympy_meaning(name: str):
+    """What sympy reads ``name`` as, or None when it cannot (one parse per name and process)."""
+    try:
+        return sp.sympify(name)
+    except (sp.SympifyError, TypeError, ValueError, SyntaxError, AttributeError):
+        return None
+
+
 def check_assumptions(sym: sp.Symbol, kind: str, where: str, model_name: str) -> None:
     """Refuse a look-alike of a state, input or disturbance created with assumptions beyond ``real``.
 
@@ -63,9 +72,9 @@ def check_assumptions(sym: sp.Symbol, kind: str, where: str, model_name: str) ->
     """
     if kind == "param":
         return
-    plain = (sp.Symbol(sym.name).assumptions0, sp.Symbol(sym.name, real=True).assumptions0)
-    if sym.assumptions0 not in plain:
-        extra = sorted(k for k, v in sym.assumptions0.items() if v and k not in sp.Symbol(sym.name, real=True).assumptions0)
+    real = sp.Symbol(sym.name, real=True).assumptions0
+    if sym.assumptions0 not in (sp.Symbol(sym.name).assumptions0, real):
+        extra = sorted(k for k, v in sym.assumptions0.items() if v and k not in real)
         raise ModelError(f"model {model_name!r}: {where} uses the {kind} {sym.name!r} created with assumptions "
                          f"({', '.join(extra) or sym.assumptions0}): sympy may already have simplified with them "
                          f"(sqrt({sym.name}**2) -> {sym.name}), which is wrong where a set holds other values; "
