@@ -287,7 +287,7 @@ def _tire_saturation_model(base, target, names):
         hit.append(e)
         return e / sp.sqrt(1 + (e / F) ** 2)
 
-    f = [e.replace(lambda a: a.is_Mul and c in a.args, saturate) for e in base.f_expr]
+    f = [e.replace(_is_product_with(c, base), saturate) for e in base.f_expr]
     if not hit:
         raise ModelError(f"tire_saturation: no force term is a product with parameter {target!r}")
     return _rebuild(base, f, None, None, {names[0]: 10.0}, f"{base.name}+tire_saturation({target})")
@@ -321,9 +321,26 @@ def _spread(x):
     return s if s > 0 else 1.0
 
 
+def _is_product_with(c, model):
+    """The predicate of :func:`_tire_saturation_model`: a product with the symbol ``c`` as one of its factors and a
+    state or input among its symbols (a force ``c s(x, u)``; a constant load ``c_load / J`` is not one)."""
+    signals = {model.symbols[n] for n in model.state_names + model.input_names}
+    return lambda a: a.is_Mul and c in a.args and bool(a.free_symbols & signals)
+
+
 def _stiffness_params(model):
-    """Parameters that multiply a force-like term (candidate cornering/spring stiffnesses): names starting with c_."""
-    return [p for p in model.param_names if p.startswith("c_")]
+    """Candidate stiffnesses: parameters named ``c_...`` that multiply a term of the dynamics.
+
+    A ``c_`` parameter in no product with a state or input (an additive load ``c_load``)
+    has no force term to saturate and is not a target.
+    """
+    out = []
+    for p in model.param_names:
+        if p.startswith("c_"):
+            c = model.symbols[p]
+            if any(e.find(_is_product_with(c, model)) for e in model.f_expr):
+                out.append(p)
+    return out
 
 
 def _velocity_states(model):

@@ -77,6 +77,7 @@ from reachconf.diagnose.verdict import (
     decision_record,
     effect_entries,
     model_entry,
+    refit_record,
     verdict_text,
 )
 from reachconf.checks import check_options
@@ -422,7 +423,8 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     if change is not None:
         record["reference"] = change
     best_entry = ranked_entries[0] if ranked_entries else None
-    verdict = verdict_text(record, best_entry, interrupted, shrink if chosen is not None else None)
+    refit = refit_record(model, base_full, base_sc, prepared, scale, clusters, options) if change is None else None
+    verdict = verdict_text(record, best_entry, interrupted, shrink if chosen is not None else None, refit=refit)
     base_info = {"params": {k2: float(v) for k2, v in base_full.base_params.items()},
                  "nominal": {k2: float(model.params[k2]) for k2 in fit_names}, "held_out_loss": base_total,
                  "box": {ch: [float(a), float(b)] for ch, a, b in zip(channels, base_box[0], base_box[1])},
@@ -430,7 +432,7 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
                  "loss_scale": {"method": options.loss_scale, "per_output": np.asarray(scale).tolist(),
                                 "per_case": {d.name: float(d.weight) for d in prepared}},
                  "folds": k_folds, "clusters": int(clusters.max()) + 1 if clusters.size else 0,
-                 "cpu_seconds_by_step": timings, "workers": fits.workers}  # fmt: skip
+                 "cpu_seconds_by_step": timings, "workers": fits.workers, "refit": refit}  # fmt: skip
     split = {"train": [d.name for d in train], "test": [d.name for d in test],
              "folds": {d.name: int(f) for d, f in zip(prepared, folds)}}  # fmt: skip
     report = GapReport(where, ranked_entries, verdict, base_info, None, features, before_after, split,

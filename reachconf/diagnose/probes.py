@@ -127,44 +127,65 @@ def _probes(model, data, horizon):
     return t, out
 
 
-def _start_state(model, data):
-    """A measured (smoothed) state near the data's median operating point."""
+def _start_outputs(model, data):
+    """The measured (smoothed) outputs at a window start near the data's median operating point, or None when the
+    states cannot be read from the outputs."""
     from reachconf.model.outputs import output_index_of_states
 
     direct = output_index_of_states(model)
     if direct is None:
         return None
-    X = np.vstack([d.Ys[d.starts][:, direct] for d in data])
+    Y = np.vstack([d.Ys[d.starts] for d in data])
+    X = Y[:, direct]
     med = np.median(X, axis=0)
     scale = np.std(X, axis=0)
     scale = np.where(scale > 0, scale, 1.0)
-    return X[int(np.argmin(np.sum(((X - med) / scale) ** 2, axis=1)))].copy()
+    return Y[int(np.argmin(np.sum(((X - med) / scale) ** 2, axis=1)))].copy()
+
+
+def _true_state(fit, y):
+    """The state a fitted candidate reads from the measured outputs ``y``: its sensor effects undone (last first)."""
+    from reachconf.model.outputs import output_index_of_states
+
+    model = fit.model
+    y = np.array(y, dtype=float)
+    for e, tgt in reversed(fit.candidate.parts):
+        if e.kind == "output":
+            i = model.output_names.index(tgt)
+            y[i] = float(e.inverse(np.array([y[i]]), fit.effect_params[(e.name, tgt)])[0])
+    return y[output_index_of_states(model)]
 
 
 def separating_probe(fit_a, fit_b, data, sigma, horizon: float = 3.0) -> dict | None:
     """The probe maneuver on which two fitted candidates' predictions differ most.
 
-    Returns ``{"probe": {...kind, input/state, frequency/size/value, text}, "separation": rms difference in
-    noise units over the probe, "ranking": the five best probes}`` or None when the models' states cannot
-    be read from the outputs.
+    Both start from the same measured outputs (each model's state read from them through its own sensor
+    effects).  Returns ``{"probe": {...kind, input/state, frequency/size/value, text}, "separation": rms
+    difference in noise units over the probe, "ranking": the five best probes}`` or None when the models'
+    states cannot be read from the outputs; ``"probe"`` is None when no probe separates them (the squared
+    differences over the best one sum to less than one noise variance: the two may be the same model).
     """
-    x_start = _start_state(fit_a.model, data)
-    if x_start is None or fit_a.model.n != fit_b.model.n:
+    y_start = _start_outputs(fit_a.model, data)
+    if y_start is None or fit_a.model.n != fit_b.model.n:
         # different state spaces (a model effect added states): start both from the shared states
         return None
+    # the same measured start is a different true state for a model with a sensor effect
+    xa_start, xb_start = _true_state(fit_a, y_start), _true_state(fit_b, y_start)
     t, probes = _probes(fit_a.model, data, horizon)
     scored = []
     for info, shift, Up in probes:
-        x0 = x_start.copy()
+        xa, xb = xa_start.copy(), xb_start.copy()
         if shift is not None:
-            x0[shift[0]] = shift[1]
-        Ya, Yb = _simulate(fit_a, x0, t, Up), _simulate(fit_b, x0, t, Up)
+            xa[shift[0]] = xb[shift[0]] = shift[1]
+        Ya, Yb = _simulate(fit_a, xa, t, Up), _simulate(fit_b, xb, t, Up)
         if Ya is None or Yb is None:
             continue
-        sep = float(np.sqrt(np.mean(((Ya - Yb) / sigma) ** 2)))
-        scored.append((sep, info))
+        r2 = ((Ya - Yb) / sigma) ** 2
+        scored.append((float(np.sqrt(np.mean(r2))), float(np.sum(r2)), info))
     if not scored:
         return None
     scored.sort(key=lambda s: -s[0])
-    return {"probe": scored[0][1], "separation": scored[0][0], "horizon": horizon,
-            "ranking": [{"text": i["text"], "separation": s} for s, i in scored[:5]]}  # fmt: skip
+    sep, total, info = scored[0]
+    # one run of the best probe would not show the two apart by even one noise std in all: none separates them
+    return {"probe": info if total >= 1.0 else None, "separation": sep, "horizon": horizon,
+            "ranking": [{"text": i["text"], "separation": s} for s, _, i in scored[:5]]}  # fmt: skip

@@ -129,8 +129,7 @@ class GapReport(JsonResult):
             lines.append("")
         for a in dec.get("alternatives", []):
             lines.append(f"- Indistinguishable from **{a['label']}** (held-out z = {_f(a['z'], '.1f')})"
-                         + (f"; separating maneuver: {a['separating']['probe']['text']} "
-                            f"({_f(a['separating']['separation'], '.1f')} noise std)" if a.get("separating") else ""))  # fmt: skip
+                         + _separating_text(a.get("separating")))
         lines += ["", "## Which effect (held-out prediction, cross-fitted)", "",
                   "| rank | model | parameters (mean over folds) | held-out loss | gain vs base | z vs base | "
                   "admissible |", "|---|---|---|---|---|---|---|"]  # fmt: skip
@@ -283,3 +282,11 @@ def _f(value, spec: str) -> str:
 def _pct(share) -> str:
     """A share as a whole percentage ("—" when None or not finite)."""
     return "—" if share is None or not np.isfinite(share) else f"{100 * share:.0f} %"
+
+
+def _separating_text(sep) -> str:
+    if not sep:
+        return ""
+    if sep["probe"] is None:
+        return f"; no probe maneuver separates them (at most {_f(sep['separation'], '.2g')} noise std)"
+    return f"; separating maneuver: {sep['probe']['text']} ({_f(sep['separation'], '.1f')} noise std)"

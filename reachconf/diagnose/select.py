@@ -112,6 +112,12 @@ def window_clusters(windows_per_case, min_clusters: int) -> np.ndarray:
     return np.concatenate(ids) if ids else np.zeros(0, dtype=np.int64)
 
 
+#: Relative resolution of a held-out loss: every fit stops at a relative change of its cost of 1e-6 (``ftol`` of
+#: :func:`reachconf.diagnose.fit.fit_candidate`); held-out losses that differ by less than ten times that share are
+#: the same model on these data.
+LOSS_RESOLUTION = 1e-5
+
+
 def paired_test(losses_a, losses_b, clusters) -> dict:
     """Does model ``a`` predict the held-out windows better than ``b``?
 
@@ -123,9 +129,12 @@ def paired_test(losses_a, losses_b, clusters) -> dict:
     C = D.size
     G = float(D.sum())
     var = C / (C - 1) * float(np.sum((D - D.mean()) ** 2)) if C > 1 else 0.0
-    z = G / np.sqrt(var) if var > 0 else (np.inf if G > 0 else (-np.inf if G < 0 else 0.0))
-    total_b = float(np.sum(losses_b))
-    return {"gain": G / total_b if total_b > 0 else 0.0, "removed": G, "z": float(z), "se": float(np.sqrt(var)),
+    total_a, total_b = float(np.sum(losses_a)), float(np.sum(losses_b))
+    # two fits of the same model on these data differ by the fits' tolerance, not by evidence: the standard error
+    # is at least the losses' resolution (else equivalent models "differ" with z ~ G / 0 on round-off)
+    se = max(float(np.sqrt(var)), LOSS_RESOLUTION * max(abs(total_a), abs(total_b)))
+    z = G / se if se > 0 else (np.inf if G > 0 else (-np.inf if G < 0 else 0.0))
+    return {"gain": G / total_b if total_b > 0 else 0.0, "removed": G, "z": float(z), "se": se,
             "clusters": int(C)}  # fmt: skip
 
 

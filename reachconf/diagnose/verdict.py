@@ -87,8 +87,34 @@ def _route(th) -> str:
     return f", or of {100 * th['consistent_gain']:.0f} % with the same effect in every maneuver"
 
 
-def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
-    """One paragraph: what explains the gap, with intervals; or which explanations the data cannot separate."""
+def refit_record(model, base_full, base_sc, prepared, sigma, clusters, options) -> dict | None:
+    """What the refit of the base parameters did: its held-out gain over the model's own values, and how far each
+    parameter moved (relative); None when nothing was refitted.
+
+    The model's own values predict every window without a fit, so their window losses are held-out losses
+    too; the paired test is the one every effect is judged by (:func:`~reachconf.diagnose.select.paired_test`).
+    """
+    from dataclasses import replace
+
+    from reachconf.diagnose.fit import window_losses
+    from reachconf.diagnose.select import paired_test
+
+    if not base_full.base_params:
+        return None
+    own = window_losses(replace(base_full, model=model, base_params={}), prepared, sigma, options)
+    t = paired_test(base_sc.losses, own, clusters)
+    moved = {n: (v / float(model.params[n]) - 1.0 if float(model.params[n]) != 0.0 else float("nan"))
+             for n, v in base_full.base_params.items()}  # fmt: skip
+    return {"gain": t["gain"], "z": t["z"], "moved": moved, "params": dict(base_full.base_params)}
+
+
+def verdict_text(record, best_entry, interrupted: bool, shrink=None, refit=None) -> str:
+    """One paragraph: what explains the gap, with intervals; or which explanations the data cannot separate.
+
+    ``refit`` (:func:`refit_record`): when no effect is named and the refit of the base parameters passes the
+    naming rule against the model's own values, the verdict says so and how far the parameters moved (the
+    refit may have absorbed an effect).
+    """
     pre = "INTERRUPTED, partial result: " if interrupted else ""
     ref = record.get("reference")
     if ref is not None and ref.get("loss") == "difference":
@@ -123,7 +149,7 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
                       f"{100 * record['thresholds']['min_improvement']:.0f} %{_route(record['thresholds'])}"
                       + ("; a model with two effects needs that against each of its parts too (the model with the "
                          "other effect alone), not only against the base" if len(best_entry.get("parts") or ()) > 1 else "")
-                      + f"{bound})")  # fmt: skip
+                      + f"{bound})" + _refit_text(refit, record["thresholds"]))  # fmt: skip
     named = record["named"]
     tests = record.get("tests", [])
     gain = ", ".join(f"{100 * t['gain']:.0f} % below {t['against']} (z = {t['z']:.1f}"
@@ -158,6 +184,20 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None) -> str:
     seps = [a["separating"] for a in alts if a.get("separating")]
     if seps:
         s = seps[0]
-        text += (f"; {s['probe']['text']} would separate them (their predicted measurements differ by "
-                 f"{s['separation']:.1f} noise std over {s['horizon']:g} s)")
+        if s["probe"] is None:
+            text += (f"; no probe maneuver separates them (their predicted measurements differ by at most "
+                     f"{s['separation']:.2g} noise std over {s['horizon']:g} s: the two may be the same model)")
+        else:
+            text += (f"; {s['probe']['text']} would separate them (their predicted measurements differ by "
+                     f"{s['separation']:.1f} noise std over {s['horizon']:g} s)")
     return pre + text + bound
+
+
+def _refit_text(refit, th) -> str:
+    if not refit or not (refit["z"] >= th["z_name"] and refit["gain"] >= th["min_improvement"]):
+        return ""
+    moved = sorted(((n, r) for n, r in refit["moved"].items() if np.isfinite(r)), key=lambda nr: -abs(nr[1]))[:4]
+    return (f"; but the refit of the base parameters itself removes {100 * refit['gain']:.0f} % of the held-out loss "
+            f"of the model's own values (z = {refit['z']:.1f}; " + ", ".join(f"{n} {100 * r:+.1f} %" for n, r in moved)
+            + "): it may absorb an effect — fit_params=False, or fewer parameters, tests the effects against the "
+            "model's own values")

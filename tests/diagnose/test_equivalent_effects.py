@@ -1,0 +1,59 @@
+"""Explanations that are the same model on the data (found on a user's own cart: a position-sensor bias b is an
+input offset k b) are reported as indistinguishable with no separating probe, not "separated" on round-off; a
+c_ parameter that multiplies nothing is no stiffness; a refit of the base parameters that absorbs the gap is said."""
+
+import numpy as np
+
+import reachconf as rc
+from reachconf.diagnose.effects import EFFECTS
+from reachconf.diagnose.select import paired_test
+from reachconf.diagnose.verdict import verdict_text
+
+from test_diagnose import _oscillator_suite
+
+
+def test_losses_equal_to_the_fits_tolerance_are_no_evidence():
+    rng = np.random.default_rng(0)
+    a = rng.uniform(1.0, 3.0, 200)
+    b = a * (1 + 1e-9 * rng.normal(size=a.size))  # two fits of one model: equal to 9 digits
+    t = paired_test(a, b, np.arange(a.size) // 10)
+    assert abs(t["z"]) < 0.01  # was |z| of about 1 to 3 on the round-off alone
+    real = paired_test(a, a * 1.05, np.arange(a.size) // 10)  # a real 5 % difference keeps its evidence
+    assert real["z"] > 10
+
+
+def test_a_sensor_bias_and_its_equivalent_input_offset_are_indistinguishable_and_no_probe_separates_them():
+    m, suite = _oscillator_suite(n=4, seed=3)
+    cases = []
+    for c in suite:  # p measured 0.05 too high: the same as an input offset k * 0.05 = 0.2 (states start measured)
+        Y = np.array(c.Y, dtype=float)
+        Y[:, 0] += 0.05
+        cases.append(rc.TestCase(c.name, c.group, c.t, c.U, Y, c.input_names, c.output_names))
+    rep = rc.diagnose(m, rc.TestSuite(cases), effects=[("input_offset", "u"), ("output_offset", "p")],
+                      fit_params=False, progress=False, workers=1)  # fmt: skip
+    d = rep.decision
+    assert d["status"] == "indistinguishable", rep.verdict
+    (alt,) = d["alternatives"]
+    assert alt["separating"]["probe"] is None  # was a step "separating them by 11 noise std"
+    assert alt["separating"]["separation"] < 1e-3
+    assert "no probe maneuver separates them" in rep.verdict
+
+
+def test_a_c_parameter_that_multiplies_no_signal_is_not_a_stiffness():
+    motor = rc.Model(name="motor", states=("i", "w"), inputs=("u",), disturbances=("d",),
+                     params={"R": 1.0, "K": 0.1, "L": 0.5, "b": 0.01, "J": 0.01, "c_load": 0.2, "c_m": 1.0},
+                     dynamics=lambda s: [(s.u - s.R * s.i - s.K * s.w) / s.L,
+                                         (s.c_m * s.K * s.i - s.b * s.w - s.c_load) / s.J + s.d])  # fmt: skip
+    assert EFFECTS["tire_saturation"].applicable(motor) == ["c_m"]  # c_load was a target and stopped the diagnosis
+    assert EFFECTS["tire_saturation"].applicable(rc.models.bicycle()) == ["c_f", "c_r"]
+
+
+def test_a_refit_that_absorbs_the_gap_is_said_when_no_effect_is_named():
+    record = {"status": "none", "thresholds": {"z_name": 3.0, "min_improvement": 0.3, "consistent_gain": 0.2,
+                                                 "max_spread": 0.0}}  # fmt: skip
+    best = {"label": "input_offset(q)", "prediction_gain": 0.24, "z_vs_base": 2.9, "parts": [["input_offset", "q"]]}
+    refit = {"gain": 0.83, "z": 15.0, "moved": {"a1": -0.044, "g": -0.042, "A1": -0.013}, "params": {}}
+    text = verdict_text(record, best, False, refit=refit)
+    assert "refit of the base parameters itself removes 83 %" in text and "a1 -4.4 %" in text
+    weak = dict(refit, z=1.0)
+    assert "refit" not in verdict_text(record, best, False, refit=weak)
