@@ -29,7 +29,7 @@ from reachconf.errors import OptionsError, ReachError
 from reachconf.model.core import require_model
 from reachconf.reach_adaptive import run_adaptive
 from reachconf.reach_adaptive_stream import run_adaptive_streamed, streamed_grid
-from reachconf.reach_errors import fixed_step_failure
+from reachconf.reach_errors import fixed_step_failure, float_failure
 from reachconf.reach_options import AdaptiveReach, ReachOptions
 from reachconf.sets.convert import as_zonotope
 from reachconf.sets.core import Zonotope
@@ -211,7 +211,8 @@ def reach(model, X0, times, inputs=None, W=None, options: ReachOptions | None = 
     per, fixed = tube_bytes_per_step(model.n, model.m, options.zonotope_order)
     check_memory(f"reach of model {model.name!r}", integration_steps(times, options), per, fixed,
                  hint="reachconf.reach_stream.reach_streamed computes it in bounded memory")  # fmt: skip
-    return ReachTube.from_run(reach_run(model, X0, times, inputs, W, options), model)
+    with float_failure(model):
+        return ReachTube.from_run(reach_run(model, X0, times, inputs, W, options), model)
 
 
 class ReachStopped(Exception):

@@ -7,6 +7,8 @@ smallest step, highest tensor order, splits and error budgets it tried).
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import re
 
 import numpy as np
@@ -147,3 +149,20 @@ def adaptive_failure(model, options, state, t, c, G, smallest, highest, splits, 
             "max_order": float(options.alg.max_order), "splits": int(splits), "max_splits": int(max_splits),
             "steps": int(steps)}  # fmt: skip
     return ReachError(msg, time=float(t), state=state_name, term="steps/memory" if limit else term, tried=info)
+
+
+@contextmanager
+def float_failure(model):
+    """Turn a division by zero inside the compiled reach loops into a :class:`ReachError`.
+
+    The loops' interval guards compare bounds; once a bound has overflowed to inf and a sum of infinities made it
+    NaN (a Jacobian entry such as ``d log(x) / dx = 1 / x`` on a set next to 0), no comparison holds and the
+    compiled code divides by zero.  The sets are then meaningless; say so instead of a bare ZeroDivisionError.
+    """
+    try:
+        yield
+    except ZeroDivisionError:
+        raise ReachError(
+            f"reach {model.name}: the sets' bounds overflowed (a division by zero in the compiled reach loop): a "
+            "derivative of the model is beyond floating point on the set, as 1/x is near x = 0 (log, sqrt, division); "
+            "start the set further from that point, or rescale the states") from None

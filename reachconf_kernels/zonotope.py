@@ -2,8 +2,9 @@
 
 Pure numba functions on float64 arrays.  Operations that are exact in real
 arithmetic (linear map, Minkowski sum, Cartesian product, enclose) are
-computed in floating point (``quad_map`` and its rounding bound:
-:mod:`reachconf_kernels.quadmap`); operations that create boxes
+computed in floating point, rounded to nearest: their result may miss a true point by a few ulps of the
+numbers' magnitude (all of a width that underflows), which they do not enclose (``quad_map`` has a rounding
+bound: :mod:`reachconf_kernels.quadmap`); operations that create boxes
 (interval hull, order reduction, from_interval) round the box outward so the
 result always contains the input.  The reachability kernels add a small
 relative allowance per step for the rounding of the float operations.
@@ -92,7 +93,7 @@ def linear_map(M, c, G):
 
 @njit(cache=True)
 def minkowski_sum(c1, G1, c2, G2):
-    """Minkowski sum of ``Z(c1, G1)`` and ``Z(c2, G2)``: ``(c1 + c2, [G1 G2])`` (centre outward-rounding in the generators)."""
+    """Minkowski sum of ``Z(c1, G1)`` and ``Z(c2, G2)``: ``(c1 + c2, [G1 G2])`` (the centre sum rounded to nearest)."""
     n = c1.shape[0]
     G = np.empty((n, G1.shape[1] + G2.shape[1]))
     G[:, : G1.shape[1]] = G1

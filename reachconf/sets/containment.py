@@ -82,7 +82,7 @@ def _normalized(c, G, P):
     ``s`` holds one number per coordinate for all points: the largest of their
     scales in it (the points that matter lie in the set's interval hull, whose
     scales barely differ; one far away is rejected by the hull either way).
-    ``s_i = 0`` (the coordinate all zero) leaves its numbers as they are.
+    ``s_i = 0`` (the coordinate all zero) becomes the smallest float: a point off 0 there is outside.
     """
     c = np.asarray(c, dtype=float)
     G = np.asarray(G, dtype=float)
@@ -91,8 +91,11 @@ def _normalized(c, G, P):
     near = np.all(np.abs(P - c) <= 2.0 * r + REL_MAGNITUDE * np.abs(c), axis=1)
     mag = np.maximum(np.abs(c), np.max(np.abs(P[near]), axis=0) if near.any() else 0.0)
     s = np.maximum(r, REL_MAGNITUDE * mag)
-    s[s == 0.0] = 1.0
-    return np.zeros_like(c), G / s[:, None], (P - c) / s, s
+    # a coordinate all zero (no extent, centre 0, no point near but at 0): any point off 0 is outside, as the scale
+    # 1e-5 |p_i| of the module docstring says; the smallest float keeps the quotient finite in sign and order
+    s[s == 0.0] = np.nextafter(0.0, 1.0)
+    with np.errstate(over="ignore"):  # (a point off 0 there: +-inf, outside)
+        return np.zeros_like(c), G / s[:, None], (P - c) / s, s
 
 
 def contains_points(c, G, P, tol=1e-9):

@@ -220,6 +220,11 @@ class Interval:
 class Zonotope:
     """Zonotope ``{c + G b | b in [-1, 1]^m}``.
 
+    Operations that are exact in real arithmetic (linear map, Minkowski sum, ``+`` a vector, enclose, scale,
+    compact) are computed in floating point and may miss a true point by a few ulps of the numbers' magnitude;
+    those that make boxes (interval hull, reduction, ``quad_map``) round outward.  ``contains``' default
+    tolerance covers the former; the reach algorithms add an allowance for them every step.
+
     Parameters
     ----------
     center : array_like (n,)
@@ -314,7 +319,8 @@ class Zonotope:
         return self
 
     def linear_map(self, M) -> "Zonotope":
-        """``M @ self`` (exact), for a matrix ``M`` (k, n)."""
+        """``M @ self``, for a matrix ``M`` (k, n): exact in real arithmetic, computed in floating point (the few-ulp
+        rounding is not enclosed; the reach algorithms add an allowance for it)."""
         return M @ self
 
     def __rmatmul__(self, M):

@@ -78,3 +78,18 @@ def test_model_builds_of_the_default_and_of_fixed_orders():
     assert model_builds([rc.ReachOptions(remainder="tensor")]) == [(2, "taylor"), (2, "tensor"), (3, "tensor")]
     assert model_builds([rc.ReachOptions(algorithm="lin", remainder="tensor")]) == [(2, "taylor"), (2, "tensor")]
     assert model_builds([rc.ReachOptions(remainder="tensor", tensor_order=2)]) == [(2, "taylor"), (2, "tensor")]
+
+
+def test_a_division_by_zero_in_the_compiled_loop_is_a_reach_error():
+    """The compiled loops divide by zero once a bound overflowed and NaN slipped past the interval guards (a reach
+    of y' = log x from x near 1e-8, found by a numerical audit): a ReachError saying what to change, not a bare
+    ZeroDivisionError."""
+    from reachconf.errors import ReachError
+    from reachconf.reach_errors import float_failure
+
+    class _M:
+        name = "tiny_log"
+
+    with pytest.raises(ReachError, match=r"reach tiny_log: the sets' bounds overflowed .* rescale the states"):
+        with float_failure(_M()):
+            1.0 / 0.0

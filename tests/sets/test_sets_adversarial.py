@@ -94,3 +94,18 @@ def test_reductions_hull_and_compact_enclose_exactly(kind):
             _assert_encloses(Zonotope(c, G), Z, D, f"reduce_adaptive {tol} {max_order}")
         for tol in (0.0, 1e-3 * float(np.abs(Z.generators).max(initial=0.0))):
             _assert_encloses(Z.compact(tol), Z, D, f"compact {tol}")
+
+
+def test_a_coordinate_with_no_extent_at_zero_holds_only_zero():
+    """A set with no generators at 0 in a coordinate accepted points up to the absolute tolerance there (1e-9),
+    not the documented scale 1e-5 |p_i| (found by a numerical audit: {(0, 0)} held (0, 5e-10))."""
+    from reachconf import Zonotope
+
+    for c in ([0.0, 0.0], [1e-3, 0.0], [0.0, 0.0, 0.0]):
+        Z = Zonotope(c, np.zeros((len(c), 0)))
+        off = np.array(c)
+        off[-1] = 5e-10
+        assert not Z.contains(off)
+        assert Z.contains(np.array(c))
+    Z = Zonotope([1.0, 0.0], [[1.0], [0.0]])  # a segment on the axis: its own points in, a hair off it out
+    assert list(Z.contains(np.array([[1.5, 0.0], [1.5, 1e-12], [0.0, 0.0]]))) == [True, False, True]
