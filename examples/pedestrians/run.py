@@ -135,8 +135,13 @@ def main(argv=None):
     except ReachconfError as exc:
         print(f"pedestrians: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("pedestrians: interrupted before any set-up was complete; nothing written", file=sys.stderr)
+        return 130
     out.mkdir(parents=True, exist_ok=True)
-    default = "hotel, start every 0.1 s, backward velocity"
+    # causal: starts on the annotations (every 0.4 s), velocity from the past; a finer start interpolates the
+    # position and the "backward" velocity between annotations, i.e. from the next one (0.1-0.3 s ahead)
+    default = "hotel, start every 0.4 s, backward velocity"
     cases, table = variants[default]
     curve = plot_curve(cases, out)
     seconds = time.perf_counter() - t_start

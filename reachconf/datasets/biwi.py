@@ -117,7 +117,10 @@ def prediction_cases(tracks, horizon=1.6, start_step=0.4, velocity="backward", f
     ----------
     start_step : float
         Spacing of the start times; finer than 0.4 s resamples the track by
-        linear interpolation of the positions.
+        linear interpolation of the positions, so that a start between two
+        annotations takes its position (and a "backward" velocity) partly from
+        the next one, up to 0.3 s ahead: not what a predictor could know.  The
+        default, 0.4 s, starts on the annotations only.
     velocity : {"backward", "file"}
         ``"backward"``: ``(p(t0) - p(t0 - 0.4)) / 0.4`` from the past only (needs
         0.4 s of history); ``"file"``: the file's central differences

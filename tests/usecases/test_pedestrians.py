@@ -95,5 +95,13 @@ def test_table9_on_real_hotel_data(tmp_path):
     table = json.loads((tmp_path / "table9.json").read_text())
     assert 90.0 <= table["rate"] <= 100.0
     assert table["passed"] + sum(table["failures"].values()) == table["test_cases"]
+    # the default is causal: it starts on the annotations (until 2 Dec it interpolated every 0.1 s, which takes the
+    # start position and its "backward" velocity partly from the next annotation)
+    assert table["setup"] == "hotel, start every 0.4 s, backward velocity"
+    causal = prediction_cases(tracks, 1.6)  # (the default start_step: on the annotations)
+    annotated = np.vstack([tr.p for tr in tracks])
+    nearest = [np.min(np.abs(annotated - p).sum(axis=1)) for p in causal.p0[::10]]
+    assert max(nearest) < 1e-9  # every start position is an annotated one
+    assert table["test_cases"] == len(causal)
     assert table["seconds"] < 60
     assert (tmp_path / "pass_rate_curve.png").exists()
