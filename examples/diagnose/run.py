@@ -139,4 +139,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from reachconf.script import run_script
+
+    sys.exit(run_script(main, "diagnose"))

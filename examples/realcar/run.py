@@ -54,6 +54,7 @@ from jobs import reachset_job  # noqa: E402
 
 import reachconf as rc  # noqa: E402
 from reachconf.io import TestSuite, atomic_write, json_text, save_suite  # noqa: E402
+from reachconf.script import caused_by_ctrl_c  # noqa: E402
 from reachconf.models import single_track  # noqa: E402
 from reachconf.plot import save_figure  # noqa: E402
 from reachconf.runner import Pool, run_cases  # noqa: E402
@@ -342,6 +343,13 @@ def main(argv=None):
                     result["table3_after"] = {"model": label, "named": named, "table": bands_after}
                 result["diagnosis_markdown"] = diagnosis_markdown(report, tab, bands_after, label)
                 result["diagnosis_pictures"] = save_report(report, out, plots=not args.no_plots)
+    except (KeyboardInterrupt, SystemError) as exc:  # Ctrl-C (the pool's Interrupted; in compiled code a SystemError)
+        if not (isinstance(exc, KeyboardInterrupt) or caused_by_ctrl_c(exc)):
+            raise
+        result["timings"] = timings
+        atomic_write(out / "realcar.partial.json", json_text(result))
+        print(f"realcar: interrupted; the finished parts are in {out / 'realcar.partial.json'}", file=sys.stderr)
+        raise
     except (rc.ReachconfError, OSError) as exc:
         print(f"realcar: error: {exc}", file=sys.stderr)
         return 2
@@ -357,4 +365,6 @@ def main(argv=None):
 
 if __name__ == "__main__":
     os.environ.setdefault("MPLBACKEND", "Agg")
-    sys.exit(main())
+    from reachconf.script import run_script
+
+    sys.exit(run_script(main, "realcar"))

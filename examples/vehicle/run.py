@@ -377,4 +377,6 @@ def _run(args, out, suite, plain, pool, timings, result):
 
 if __name__ == "__main__":
     os.environ.setdefault("MPLBACKEND", "Agg")
-    sys.exit(main())
+    from reachconf.script import run_script
+
+    sys.exit(run_script(main, "vehicle"))

@@ -339,4 +339,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from reachconf.script import run_script
+
+    sys.exit(run_script(main, "windturbine"))
