@@ -90,6 +90,10 @@ class Effect:
         effect's state at ``t_0`` moved by ``s`` from where ``signal`` starts
         it.  A case cut from a longer run starts with the actuator in motion;
         the diagnosis fits ``s`` per case (:func:`reachconf.diagnose.fit.case_starts`).
+    units : tuple of str, optional
+        Units of the parameters for the verdict's text (``("s",)`` for a time
+        constant); None where they are those of the target (an offset) or none
+        (a gain).
     """
 
     name: str
@@ -106,6 +110,7 @@ class Effect:
     start_grid: tuple | None = None
     null: tuple | None = None
     start: Callable | None = None
+    units: tuple | None = None
 
     def __reduce__(self):
         # a registered effect travels by name (its callables are often lambdas): the diagnosis's worker
@@ -367,10 +372,10 @@ def register_effect(effect: Effect) -> Effect:
 
 register_effect(Effect("actuator_lag", "input", ("tau",), lambda x: (0.05,), lambda x: ((0.002,), (1.0,)),
                        signal=_lag, order=2, description="first-order actuator lag, time constant tau [s]",
-                       null=(0.0,), start=_lag_start))  # fmt: skip
+                       null=(0.0,), start=_lag_start, units=("s",)))  # fmt: skip
 register_effect(Effect("dead_time", "input", ("T",), lambda x: (0.04,), lambda x: ((0.0,), (0.5,)),
                        signal=_delay, order=3, description="transport delay T [s] on an input",
-                       start_grid=(0.02, 0.05, 0.08, 0.12, 0.16, 0.2, 0.3), null=(0.0,)))  # fmt: skip
+                       start_grid=(0.02, 0.05, 0.08, 0.12, 0.16, 0.2, 0.3), null=(0.0,), units=("s",)))  # fmt: skip
 register_effect(Effect("input_offset", "input", ("c",), lambda x: (0.0,),
                        lambda x: ((-2 * _spread(x),), (2 * _spread(x),)),
                        signal=lambda t, u, th: u + th[0], order=0, description="additive input offset c", null=(0.0,)))  # fmt: skip

@@ -28,7 +28,7 @@ def effect_entries(fit, level: float, method: str) -> list:
         out.append({"effect": e.name, "target": tgt, "params": dict(zip(e.params, map(float, th))),
                     "params_std": by_std[method], "interval": by_iv[method], "std_by_method": by_std,
                     "interval_by_method": by_iv, "group_estimates": [list(v) for v in fit.spread.get(key, [])],
-                    "at_bound": bound})  # fmt: skip
+                    "at_bound": bound, "units": list(e.units) if e.units else None})  # fmt: skip
     return out
 
 
@@ -57,9 +57,11 @@ def _effect_params(m, name, target):
 
 def _fmt_effect(ent) -> str:
     ps = []
+    units = dict(zip(ent["params"], ent.get("units") or ()))
     for p, v in ent["params"].items():
         lo, hi = ent["interval"][p]
-        ps.append(f"{p} = {v:.4g}" + ("" if not np.isfinite(lo) else f" [{lo:.4g}, {hi:.4g}]"))
+        unit = f" {units[p]}" if units.get(p) else ""
+        ps.append(f"{p} = {v:.4g}" + ("" if not np.isfinite(lo) else f" [{lo:.4g}, {hi:.4g}]") + unit)
     return f"{ent['effect']} on {ent['target']} ({', '.join(ps)})"
 
 

@@ -57,3 +57,14 @@ def test_a_refit_that_absorbs_the_gap_is_said_when_no_effect_is_named():
     assert "refit of the base parameters itself removes 83 %" in text and "a1 -4.4 %" in text
     weak = dict(refit, z=1.0)
     assert "refit" not in verdict_text(record, best, False, refit=weak)
+
+
+def test_time_parameters_carry_their_unit_in_the_verdict():
+    from reachconf.diagnose.verdict import _fmt_effect
+
+    assert EFFECTS["actuator_lag"].units == ("s",) and EFFECTS["dead_time"].units == ("s",)
+    ent = {"effect": "actuator_lag", "target": "u", "params": {"tau": 0.197}, "interval": {"tau": [0.192, 0.202]},
+           "units": ["s"]}  # fmt: skip
+    assert _fmt_effect(ent) == "actuator_lag on u (tau = 0.197 [0.192, 0.202] s)"
+    ent = {"effect": "input_scale", "target": "u", "params": {"k": 0.9}, "interval": {"k": [0.8, 1.0]}, "units": None}
+    assert _fmt_effect(ent) == "input_scale on u (k = 0.9 [0.8, 1])"
