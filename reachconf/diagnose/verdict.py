@@ -139,7 +139,8 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None, refit=None)
     bound = ""
     if best_entry is not None and best_entry.get("at_bound"):  # the best fit was not named for its bound
         bound = (f"; {best_entry['label']} predicts best, but {', '.join(best_entry['at_bound'])} ended at a bound of "
-                 "its range: the effect may be larger than the library allows, or stand in for something else")  # fmt: skip
+                 "its range: the effect may be larger than the library allows (a slow plant: register_effect an Effect "
+                 "of the same name with wider bounds), or stand in for something else")  # fmt: skip
     if record["status"] == "none":
         if best_entry is None:
             return pre + "no effect was fitted"

@@ -68,3 +68,18 @@ def test_time_parameters_carry_their_unit_in_the_verdict():
     assert _fmt_effect(ent) == "actuator_lag on u (tau = 0.197 [0.192, 0.202] s)"
     ent = {"effect": "input_scale", "target": "u", "params": {"k": 0.9}, "interval": {"k": [0.8, 1.0]}, "units": None}
     assert _fmt_effect(ent) == "input_scale on u (k = 0.9 [0.8, 1])"
+
+
+def test_a_slow_plant_widens_a_library_range_by_registering_the_effect_again():
+    import dataclasses
+
+    from reachconf.diagnose.effects import register_effect
+
+    original = EFFECTS["dead_time"]
+    try:
+        wide = register_effect(dataclasses.replace(original, bounds=lambda x: ((0.0,), (2.0,))))
+        assert EFFECTS["dead_time"] is wide and wide.registered
+        assert wide.start_values("u", np.zeros(5))[2] == (2.0,)
+    finally:
+        register_effect(original)
+    assert EFFECTS["dead_time"] is original
