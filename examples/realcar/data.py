@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import gzip
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -44,13 +45,19 @@ def read_run(folder) -> dict:
         with gzip.open(path, "rt", encoding="utf-8") as fh:
             header = fh.readline().strip().split(",")
             data = np.loadtxt(fh, delimiter=",", ndmin=2)
-    except (OSError, ValueError, EOFError) as exc:
-        raise rc.DataError(f"{path}: cannot read ({exc})") from exc
+    except (OSError, ValueError, EOFError) as exc:  # numpy counts data rows from 0: name the file's line
+        msg = re.sub(r"row (\d+)", lambda m: f"line {int(m.group(1)) + 2}", str(exc))
+        raise rc.DataError(f"{path}: cannot read ({msg})") from exc
     missing = [c for c in COLUMNS if c not in header]
     if missing or data.shape[1] != len(header) or data.shape[0] < 200:
         raise rc.DataError(f"{path}: expected columns {list(COLUMNS)} and >= 200 rows, got {header} x {data.shape}")
-    if not np.all(np.isfinite(data)) or not np.all(np.diff(data[:, header.index("t")]) > 0):
-        raise rc.DataError(f"{path}: NaN/inf values or non-increasing time")
+    bad = ~np.isfinite(data)
+    if bad.any():  # the file's line (the header is line 1) and column
+        r, c = np.argwhere(bad)[0]
+        raise rc.DataError(f"{path}: line {r + 2}, column {header[c]!r}: {data[r, c]} ({int(bad.sum())} NaN/inf in all)")
+    steps = np.flatnonzero(~(np.diff(data[:, header.index("t")]) > 0))
+    if steps.size:
+        raise rc.DataError(f"{path}: line {steps[0] + 3}: time does not increase ({steps.size} such steps)")
     return {c: data[:, header.index(c)] for c in header}
 
 

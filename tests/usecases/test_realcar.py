@@ -546,3 +546,22 @@ def test_two_stages_name_an_ax_scale_that_one_stage_misses(two_stages):
     inj, truth = withheld.inject(cols, "ax_scale", 1.1)
     j = withheld.judge(diag(inj), clean2, truth)
     assert j["named_first"] and j["sized"], j
+
+
+@pytest.mark.parametrize("cell, message", [("nan", r"line 5, column 'vx': nan \(1 NaN/inf in all\)"),
+                                           ("x", r"cannot read \(could not convert string 'x' .* at line 5, column 7")])
+def test_a_bad_cell_is_named_by_the_file_line(data_mod, tmp_path, cell, message):
+    """The errors named numpy's data-row index (row 3 for the file's line 5) or no row at all (an outside review)."""
+    import gzip
+
+    import reachconf as rc
+
+    cols = data_mod.COLUMNS
+    rows = [",".join(cols)] + [",".join(f"{0.01 * k if c == 't' else 1.0:g}" for c in cols) for k in range(300)]
+    rows[4] = rows[4].split(",", 6)
+    rows[4][6] = cell + "," + rows[4][6].split(",", 1)[1]  # column 7 (vx) of line 5
+    rows[4] = ",".join(rows[4])
+    with gzip.open(tmp_path / data_mod.FILE, "wt") as fh:
+        fh.write("\n".join(rows) + "\n")
+    with pytest.raises(rc.DataError, match=message):
+        data_mod.read_run(tmp_path)
