@@ -168,7 +168,8 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     model : reachconf.Model
         The base model (with disturbances ``w``; its inputs are driven by the suite's signals).
     suite : TestSuite or iterable of TestCase
-        At least two cases.
+        At least two cases; taken in the order of their names (when unique),
+        so that the report does not depend on how they were listed.
     effects : "all", str, Effect, (name, target) or a list of these
         Candidate effects (default: the whole library on every applicable target).
     holdout : float, default 0.5
@@ -217,6 +218,8 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool) or seed < 0:
         raise OptionsError(f"diagnose: seed must be a non-negative integer, got {seed!r}")
     cases = suite_cases(suite, "diagnose")
+    if len({c.name for c in cases}) == len(cases):  # the report does not depend on the cases' order (folds, how far)
+        cases = sorted(cases, key=lambda c: c.name)
     if len(cases) < 2:
         raise ConformanceError(f"diagnose needs at least two test cases (training and held-out), got {len(cases)}")
     if model.q == 0:

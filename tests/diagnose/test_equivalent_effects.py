@@ -83,3 +83,14 @@ def test_a_slow_plant_widens_a_library_range_by_registering_the_effect_again():
     finally:
         register_effect(original)
     assert EFFECTS["dead_time"] is original
+
+
+def test_the_report_does_not_depend_on_the_order_of_the_cases():
+    """The held-out cases of the *how far* boxes were the first of fold 0 in the order given: an outside review got
+    a 14.56x shrink from its suite in generation order and 10.53x from the same cases read alphabetically."""
+    m, suite = _oscillator_suite(lag=0.12, n=4, seed=5)
+    cases = list(suite)
+    kw = dict(effects=[("actuator_lag", "u"), ("input_offset", "u")], fit_params=False, progress=False, workers=1)
+    a = rc.diagnose(m, rc.TestSuite(cases), **kw)
+    b = rc.diagnose(m, rc.TestSuite(cases[::-1]), **kw)
+    assert a.verdict == b.verdict and a.split == b.split
