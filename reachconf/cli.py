@@ -210,11 +210,11 @@ def cmd_conform(args, run):
     for case in suite:
         if "trace" in kinds:
             per, fixed = trace_bytes_per_sample(spec.model, spec.trace_options, spec.trace_method)
-            check_memory(f"trace conformance of case {case.name!r}", case.t.size, per, fixed)
+            check_memory(f"{spec.path}: trace conformance of case {case.name!r}", case.t.size, per, fixed)
         if "reachset" in kinds:
             per, fixed = reach_bytes_per_step(spec.model, spec.reach_options, False)
-            check_memory(f"reachset conformance of case {case.name!r}", reach_step_count(case.t, spec.reach_options),
-                         per, fixed)  # fmt: skip
+            check_memory(f"{spec.path}: reachset conformance of case {case.name!r} (the [reach] options' step count)",
+                         reach_step_count(case.t, spec.reach_options), per, fixed)  # fmt: skip
     results = run.partial = {}
     X0s = spec.initial_sets(suite) or {}  # no entry: eq. 67
 
