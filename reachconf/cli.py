@@ -423,15 +423,9 @@ def _on_ctrl_c(signum, frame):  # any error after this counts as the interruptio
 def _caused_by_ctrl_c(exc: BaseException) -> bool:
     """Did Ctrl-C cause ``exc``?  Inside compiled code (numba, a solver, numpy importing ``datetime``) it
     surfaces as a SystemError, ImportError or library error that may not carry the KeyboardInterrupt."""
-    if getattr(_on_ctrl_c, "pressed", False):
-        return True
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return False
+    from reachconf.script import caused_by_ctrl_c
+
+    return bool(getattr(_on_ctrl_c, "pressed", False)) or caused_by_ctrl_c(exc)
 
 
 def main(argv=None) -> int:

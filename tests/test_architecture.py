@@ -30,7 +30,8 @@ LAYERS = (
     ("conformance, data sets", ("reachconf.conformance", "reachconf.datasets")),
     ("gap diagnosis", ("reachconf.diagnose",)),
     ("run files, demo, warm-up", ("reachconf.runfile", "reachconf.demo", "reachconf.warmup")),
-    ("command line", ("reachconf.cli", "reachconf.cli_cases", "reachconf.commands", "reachconf.drawable")),
+    ("command line, example scripts", ("reachconf.cli", "reachconf.cli_cases", "reachconf.commands", "reachconf.drawable",
+                                       "reachconf.script")),
     ("the package face", ("reachconf",)),
 )
 #: (importer, imported) pairs allowed to run against the layering: at most one, each with its reason
