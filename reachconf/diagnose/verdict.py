@@ -138,9 +138,8 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None, refit=None)
                 f"loss, z = {ref['z']:.1f}; the shares below are of that excess): ")  # fmt: skip
     bound = ""
     if best_entry is not None and best_entry.get("at_bound"):  # the best fit was not named for its bound
-        bound = (f"; {best_entry['label']} predicts best, but {', '.join(best_entry['at_bound'])} ended at a bound of "
-                 "its range: the effect may be larger than the library allows (a slow plant: register_effect an Effect "
-                 "of the same name with wider bounds), or stand in for something else")  # fmt: skip
+        bound = (f"; {best_entry['label']} predicts best, but " + ", ".join(_at_bound_text(lab, best_entry)
+                                                                             for lab in best_entry["at_bound"]))
     if record["status"] == "none":
         if best_entry is None:
             return pre + "no effect was fitted"
@@ -204,3 +203,26 @@ def _refit_text(refit, th) -> str:
             f"of the model's own values (z = {refit['z']:.1f}; " + ", ".join(f"{n} {100 * r:+.1f} %" for n, r in moved)
             + "): it may absorb an effect — fit_params=False, or fewer parameters, tests the effects against the "
             "model's own values")
+
+
+def _at_bound_text(label, entry) -> str:
+    """Which end of its range a parameter reached, and what that suggests."""
+    import re
+
+    from reachconf.diagnose.effects import EFFECTS
+
+    m = re.fullmatch(r"(\w+)\.(\w+)\((.*)\)", label)
+    e = EFFECTS.get(m.group(1)) if m else None
+    value = (entry.get("params_by_effect") or {}).get(f"{m.group(1)}({m.group(3)})", {}).get(m.group(2)) if m else None
+    if e is None or value is None or m.group(2) not in e.params:
+        return (f"{label} ended at a bound of its range: the effect may lie beyond the library's range, or stand in "
+                "for something else")
+    i = e.params.index(m.group(2))
+    lo, hi = (float(b[i]) for b in e.bounds(np.ones(3)))
+    if abs(value - lo) <= abs(hi - value):
+        if e.null is not None and abs(lo - e.null[i]) <= 0.01 * (hi - lo):
+            return f"{label} = {value:.3g} ended at its no-effect end: the data show none of it"
+        return f"{label} = {value:.3g} ended at the lower bound of its range ({lo:g}): it may stand in for something else"
+    return (f"{label} = {value:.3g} ended at the upper bound of its range ({hi:g}): the effect may be larger than the "
+            "library allows (a slow plant: register_effect an Effect of the same name with wider bounds), or stand in "
+            "for something else")

@@ -143,9 +143,15 @@ def test_the_verdict_says_when_the_best_fit_was_not_named_for_its_bound():
     from reachconf.diagnose.verdict import verdict_text
 
     th = {"z_name": 3.0, "min_improvement": 0.3, "consistent_gain": 0.2, "max_spread": 0.0, "z_separate": 1.5}
-    best = {"label": "dead_time(u)", "prediction_gain": 0.8, "z_vs_base": 9.0, "at_bound": ["dead_time.T(u)"]}
+    best = {"label": "dead_time(u)", "prediction_gain": 0.8, "z_vs_base": 9.0, "at_bound": ["dead_time.T(u)"],
+            "params_by_effect": {"dead_time(u)": {"T": 0.5}}}  # fmt: skip
     text = verdict_text({"status": "none", "thresholds": th}, best, False)
     assert text.startswith("no effect in the library explains the gap")
-    assert "dead_time.T(u) ended at a bound of its range" in text and "larger than the library allows" in text
+    assert "dead_time.T(u) = 0.5 ended at the upper bound of its range (0.5)" in text
+    assert "larger than the library allows" in text
+    # at its no-effect end (T = 0) it is not "larger than the library allows" (an outside review: a clean motor)
+    none = dict(best, params_by_effect={"dead_time(u)": {"T": 6.6e-5}})
+    text = verdict_text({"status": "none", "thresholds": th}, none, False)
+    assert "ended at its no-effect end" in text and "larger" not in text
     free = dict(best, at_bound=[])
     assert "bound" not in verdict_text({"status": "none", "thresholds": th}, free, False)
