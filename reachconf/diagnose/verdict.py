@@ -105,7 +105,8 @@ def refit_record(model, base_full, base_sc, prepared, sigma, clusters, options) 
         return None
     own = window_losses(replace(base_full, model=model, base_params={}), prepared, sigma, options)
     t = paired_test(base_sc.losses, own, clusters)
-    moved = {n: (v / float(model.params[n]) - 1.0 if float(model.params[n]) != 0.0 else float("nan"))
+    # (None: a nominal 0 has no relative change)
+    moved = {n: (v / float(model.params[n]) - 1.0 if float(model.params[n]) != 0.0 else None)
              for n, v in base_full.base_params.items()}  # fmt: skip
     return {"gain": t["gain"], "z": t["z"], "moved": moved, "params": dict(base_full.base_params)}
 
@@ -198,7 +199,8 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None, refit=None)
 def _refit_text(refit, th) -> str:
     if not refit or not (refit["z"] >= th["z_name"] and refit["gain"] >= th["min_improvement"]):
         return ""
-    moved = sorted(((n, r) for n, r in refit["moved"].items() if np.isfinite(r)), key=lambda nr: -abs(nr[1]))[:4]
+    moved = sorted(((n, r) for n, r in refit["moved"].items() if r is not None and np.isfinite(r)),
+                   key=lambda nr: -abs(nr[1]))[:4]  # fmt: skip
     return (f"; but the refit of the base parameters itself removes {100 * refit['gain']:.0f} % of the held-out loss "
             f"of the model's own values (z = {refit['z']:.1f}; " + ", ".join(f"{n} {100 * r:+.1f} %" for n, r in moved)
             + "): it may absorb an effect — fit_params=False, or fewer parameters, tests the effects against the "

@@ -94,3 +94,16 @@ def test_the_report_does_not_depend_on_the_order_of_the_cases():
     a = rc.diagnose(m, rc.TestSuite(cases), **kw)
     b = rc.diagnose(m, rc.TestSuite(cases[::-1]), **kw)
     assert a.verdict == b.verdict and a.split == b.split
+
+
+def test_a_refit_record_is_saved_as_json_also_for_a_parameter_whose_nominal_is_zero(tmp_path):
+    import json
+
+    m = rc.Model(name="osc0", states=("p", "v"), inputs=("u",), disturbances=("w",), params={"k": 4.0, "d": 0.8, "b": 0.0},
+                 dynamics=lambda s: [s.v, -s.k * s.p - s.d * s.v + s.u + s.b + s.w])  # fmt: skip
+    _, suite = _oscillator_suite(n=4, seed=2, offset=0.3)
+    rep = rc.diagnose(m, suite, effects=[("input_offset", "u")], progress=False, workers=1)
+    refit = rep.base["refit"]
+    assert refit["moved"]["b"] is None and set(refit["moved"]) == {"k", "d", "b"}
+    rep.save(tmp_path / "r.json")
+    assert json.loads((tmp_path / "r.json").read_text())["base"]["refit"]["moved"]["b"] is None
