@@ -63,7 +63,7 @@ from reachconf.diagnose.probes import band_shares, separating_probe
 from reachconf.diagnose.reference import change_test, prepare_reference, same_data
 from reachconf.diagnose.report import GapReport
 from reachconf.diagnose.scales import case_layout, reweigh_factors
-from reachconf.diagnose.scoring import score_models
+from reachconf.diagnose.scoring import refit_record, score_models
 from reachconf.diagnose.select import (
     decide,
     fold_assignment,
@@ -77,7 +77,6 @@ from reachconf.diagnose.verdict import (
     decision_record,
     effect_entries,
     model_entry,
-    refit_record,
     verdict_text,
 )
 from reachconf.checks import check_options

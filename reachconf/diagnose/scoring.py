@@ -22,13 +22,13 @@ from dataclasses import replace
 from functools import partial
 from itertools import combinations
 
-from reachconf.diagnose.fit import Candidate, fit_candidate, prebuild_models, window_residuals
+from reachconf.diagnose.fit import Candidate, fit_candidate, prebuild_models, window_losses, window_residuals
 from reachconf.diagnose.parallel import FitMap
 from reachconf.diagnose.reference import difference_score, excess_scores
 from reachconf.diagnose.scales import case_weights, residual_scale
 from reachconf.diagnose.select import cross_fit, fold_start, paired_test
 
-__all__ = ["score_models"]
+__all__ = ["score_models", "refit_record"]
 
 
 def _start(fits, base_params=None):
@@ -229,3 +229,20 @@ def _next_to(first, sc, candidates, bar, models):
             have.add(single.keys)
     bar.set_postfix_str(f"cross-fit next to {first.label}")
     sc.run(todo, jobs, lambda i, m: models.append(m))
+
+
+def refit_record(model, base_full, base_sc, prepared, sigma, clusters, options) -> dict | None:
+    """What the refit of the base parameters did: its held-out gain over the model's own values, and how far each
+    parameter moved (relative); None when nothing was refitted.
+
+    The model's own values predict every window without a fit, so their window losses are held-out losses
+    too; the paired test is the one every effect is judged by (:func:`~reachconf.diagnose.select.paired_test`).
+    """
+    if not base_full.base_params:
+        return None
+    own = window_losses(replace(base_full, model=model, base_params={}), prepared, sigma, options)
+    t = paired_test(base_sc.losses, own, clusters)
+    # (None: a nominal 0 has no relative change)
+    moved = {n: (v / float(model.params[n]) - 1.0 if float(model.params[n]) != 0.0 else None)
+             for n, v in base_full.base_params.items()}  # fmt: skip
+    return {"gain": t["gain"], "z": t["z"], "moved": moved, "params": dict(base_full.base_params)}

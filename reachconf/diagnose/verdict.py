@@ -89,32 +89,10 @@ def _route(th) -> str:
     return f", or of {100 * th['consistent_gain']:.0f} % with the same effect in every maneuver"
 
 
-def refit_record(model, base_full, base_sc, prepared, sigma, clusters, options) -> dict | None:
-    """What the refit of the base parameters did: its held-out gain over the model's own values, and how far each
-    parameter moved (relative); None when nothing was refitted.
-
-    The model's own values predict every window without a fit, so their window losses are held-out losses
-    too; the paired test is the one every effect is judged by (:func:`~reachconf.diagnose.select.paired_test`).
-    """
-    from dataclasses import replace
-
-    from reachconf.diagnose.fit import window_losses
-    from reachconf.diagnose.select import paired_test
-
-    if not base_full.base_params:
-        return None
-    own = window_losses(replace(base_full, model=model, base_params={}), prepared, sigma, options)
-    t = paired_test(base_sc.losses, own, clusters)
-    # (None: a nominal 0 has no relative change)
-    moved = {n: (v / float(model.params[n]) - 1.0 if float(model.params[n]) != 0.0 else None)
-             for n, v in base_full.base_params.items()}  # fmt: skip
-    return {"gain": t["gain"], "z": t["z"], "moved": moved, "params": dict(base_full.base_params)}
-
-
 def verdict_text(record, best_entry, interrupted: bool, shrink=None, refit=None) -> str:
     """One paragraph: what explains the gap, with intervals; or which explanations the data cannot separate.
 
-    ``refit`` (:func:`refit_record`): when no effect is named and the refit of the base parameters passes the
+    ``refit`` (:func:`reachconf.diagnose.scoring.refit_record`): when no effect is named and the refit of the base parameters passes the
     naming rule against the model's own values, the verdict says so and how far the parameters moved (the
     refit may have absorbed an effect).
     """
