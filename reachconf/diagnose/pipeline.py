@@ -71,7 +71,7 @@ from reachconf.diagnose.select import (
     full_fit,
     window_clusters,
 )
-from reachconf.diagnose.separable import mimic_loss
+from reachconf.diagnose.separable import mimic_loss, probe_mimic_losses
 from reachconf.diagnose.sparse import feature_dictionary, sparse_features
 from reachconf.diagnose.verdict import (
     decision_record,
@@ -286,6 +286,9 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
         mimics[b.label] = res
         return res["mimic_loss"]
 
+    def probe_refit(a, b):  # what would a probe maneuver add? (probes.separating_probe)
+        return lambda probes: probe_mimic_losses(model, a, b, prepared, probes, scale, fit_names, options, cache)
+
     spreads = {}
 
     def spread(m):  # is every effect of m the same in every maneuver group? (select.decide, consistency)
@@ -339,7 +342,9 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
                                  "z": test["z"], "gain": test["gain"], "differs": [list(x) for x in differ],
                                  "identifiable": test["identifiable"], "expected_z": test.get("expected_z"),
                                  "effects": effect_entries(alt_full, options.interval, options.interval_method),
-                                 "separating": separating_probe(chosen_full, alt_full, prepared, sigma),
+                                 "separating": separating_probe(chosen_full, alt_full, prepared, sigma,
+                                                                refit=probe_refit(chosen_full, alt_full),
+                                                                z=options.z_name),
                                  "data_band_shares": {u: band_shares(prepared, u, model) for u in inputs}})  # fmt: skip
     bar.update(1)
     timings["named"] = _cpu_time() - c_start - sum(timings.values())

@@ -32,12 +32,17 @@ from reachconf.diagnose.fit import transformed_signals
 from reachconf.model.outputs import evaluate_outputs, state_index_of_outputs
 from reachconf_kernels.integrate import rk4_windows
 
-__all__ = ["separating_probe", "band_shares", "PROBE_FREQUENCIES", "PROBE_RATE_FACTOR", "BANDS"]
+__all__ = ["separating_probe", "band_shares", "PROBE_FREQUENCIES", "PROBE_RATE_FACTOR", "BANDS", "REFIT_PROBES",
+           "MAX_PROBE_RUNS"]
 
 #: sine probe frequencies (Hz)
 PROBE_FREQUENCIES = (0.25, 0.5, 1.0, 2.0, 4.0)
 #: probes may change an input this many times faster than the data's largest rate
 PROBE_RATE_FACTOR = 3.0
+#: probes (best point-estimate separations first) checked with the candidates refitted to each other
+REFIT_PROBES = 3
+#: a probe that needs more runs than this to reach the naming z does not count as separating
+MAX_PROBE_RUNS = 10
 #: frequency bands (Hz) of :func:`band_shares`
 BANDS = ((0.0, 0.5), (0.5, 1.0), (1.0, 2.0), (2.0, 5.0))
 
@@ -63,18 +68,20 @@ def band_shares(data, input_name, model) -> dict:
 
 
 def _simulate(fit, x0, t, U):
-    """Predicted measurements of a fitted candidate (input and output effects applied), or None."""
+    """Predicted measurements of a fitted candidate (input and output effects applied) at every time of ``t``
+    (the first row from ``x0``), or None when the simulation diverges."""
     model = fit.model
     Ue, _ = transformed_signals(model, fit.candidate, fit.effect_params, t, U, np.zeros((t.size, model.p)))
     comp = model.compiled()
     X = rk4_windows(comp.f, np.ascontiguousarray(x0[None, :]), np.zeros(1, dtype=np.int64), np.ascontiguousarray(Ue),
                     t, model.param_vector, model.q, t.size - 1, 2)[0]  # fmt: skip
+    X = np.vstack([np.asarray(x0, dtype=float)[None, :], X])
     plain = state_index_of_outputs(model)
-    Y = X[:, plain] if plain is not None else evaluate_outputs(model, X, Ue[1:])
+    Y = X[:, plain] if plain is not None else evaluate_outputs(model, X, Ue)
     for e, tgt in fit.candidate.parts:
         if e.kind == "output":
             i = model.output_names.index(tgt)
-            Y[:, i] = e.apply_signal(t[1:], Y[:, i], fit.effect_params[(e.name, tgt)])
+            Y[:, i] = e.apply_signal(t, Y[:, i], fit.effect_params[(e.name, tgt)])
     return Y if np.all(np.isfinite(Y)) else None
 
 
@@ -156,14 +163,44 @@ def _true_state(fit, y):
     return y[output_index_of_states(model)]
 
 
-def separating_probe(fit_a, fit_b, data, sigma, horizon: float = 3.0) -> dict | None:
-    """The probe maneuver on which two fitted candidates' predictions differ most.
+def separating_probe(fit_a, fit_b, data, sigma, horizon: float = 3.0, refit=None, z: float = 3.0) -> dict | None:
+    """The probe maneuver that would separate two fitted candidates.
 
     Both start from the same measured outputs (each model's state read from them through its own sensor
-    effects).  Returns ``{"probe": {...kind, input/state, frequency/size/value, text}, "separation": rms
-    difference in noise units over the probe, "ranking": the five best probes}`` or None when the models'
-    states cannot be read from the outputs; ``"probe"`` is None when no probe separates them (the squared
-    differences over the best one sum to less than one noise variance: the two may be the same model).
+    effects) and are simulated on every probe; the probes are ranked by the rms difference of the two
+    predictions (noise units).  With ``refit``, the :data:`REFIT_PROBES` best are checked the way the data were
+    (:func:`reachconf.diagnose.separable.probe_mimic_losses`): ``fit_b``'s candidate is refitted to ``fit_a``'s
+    predictions on the suite *and* on the probe, and only what it then cannot reproduce on the probe counts —
+    two point estimates that differ within their own uncertainty are not separated.  One run of a probe with
+    remaining squared differences ``D`` (noise units) gives an expected held-out z of ``sqrt(D) / 2``
+    (the loss difference ``D`` against its noise standard deviation ``2 sqrt(D)``); ``runs`` is the number of
+    runs that brings it to ``z``.
+
+    Parameters
+    ----------
+    fit_a, fit_b : FitResult
+        The chosen model and an explanation the data cannot tell from it.
+    data : list of PreparedCase
+    sigma : ndarray
+        Noise level of every output.
+    horizon : float
+        Length of a probe, seconds.
+    refit : callable, optional
+        ``refit([(t, U, Y), ...]) -> [(D, n), ...]``: the part of ``fit_a``'s predictions ``Y`` on each probe
+        that ``fit_b``'s candidate cannot reproduce (squared differences in noise units over the ``n`` compared
+        samples of the probe's prediction windows); None: rank by the point estimates alone.
+    z : float
+        The held-out z a probe must be expected to reach (:attr:`DiagnoseOptions.z_name`).
+
+    Returns
+    -------
+    dict or None
+        None when the models' states cannot be read from the outputs.  Otherwise ``probe`` (``kind``,
+        input/state, frequency/size/value, ``text``; None when no probe separates them: within
+        :data:`MAX_PROBE_RUNS` runs with ``refit``, or squared differences summing to under one noise variance
+        without), ``separation`` (rms difference of the point estimates on it, noise units), and with ``refit``
+        ``refit_separation`` (rms after the refit), ``expected_z`` (one run) and ``runs``; ``ranking``: the five
+        best probes by ``separation``.
     """
     y_start = _start_outputs(fit_a.model, data)
     if y_start is None or fit_a.model.n != fit_b.model.n:
@@ -180,12 +217,26 @@ def separating_probe(fit_a, fit_b, data, sigma, horizon: float = 3.0) -> dict | 
         Ya, Yb = _simulate(fit_a, xa, t, Up), _simulate(fit_b, xb, t, Up)
         if Ya is None or Yb is None:
             continue
-        r2 = ((Ya - Yb) / sigma) ** 2
-        scored.append((float(np.sqrt(np.mean(r2))), float(np.sum(r2)), info))
+        r2 = ((Ya[1:] - Yb[1:]) / sigma) ** 2
+        scored.append((float(np.sqrt(np.mean(r2))), float(np.sum(r2)), info, (t, Up, Ya)))
     if not scored:
         return None
     scored.sort(key=lambda s: -s[0])
-    sep, total, info = scored[0]
-    # one run of the best probe would not show the two apart by even one noise std in all: none separates them
-    return {"probe": info if total >= 1.0 else None, "separation": sep, "horizon": horizon,
-            "ranking": [{"text": i["text"], "separation": s} for s, _, i in scored[:5]]}  # fmt: skip
+    ranking = [{"text": i["text"], "separation": s} for s, _, i, _ in scored[:5]]
+    if refit is None:
+        sep, total, info, _ = scored[0]
+        # one run of the best probe would not show the two apart by even one noise std in all: none separates them
+        return {"probe": info if total >= 1.0 else None, "separation": sep, "horizon": horizon, "ranking": ranking}
+    top = [s for s in scored[:REFIT_PROBES] if s[1] >= 1.0]  # (under one noise variance: nothing to refit away)
+    found = refit([s[3] for s in top]) if top else []
+    best = max(range(len(top)), key=lambda k: found[k][0], default=None)
+    if best is None:
+        return {"probe": None, "separation": scored[0][0], "horizon": horizon, "ranking": ranking,
+                "refit_separation": 0.0, "expected_z": 0.0, "runs": None}  # fmt: skip
+    d, n = max(float(found[best][0]), 0.0), found[best][1]
+    sep, total, info, _ = top[best]
+    runs = int(np.ceil(4.0 * z * z / d)) if d > 0 else None
+    runs = runs if runs is not None and runs <= MAX_PROBE_RUNS else None
+    return {"probe": info if runs is not None else None, "separation": sep, "horizon": horizon, "ranking": ranking,
+            "refit_separation": float(np.sqrt(d / n)) if n > 0 else 0.0,
+            "expected_z": 0.5 * float(np.sqrt(d)), "runs": runs}  # fmt: skip

@@ -287,6 +287,11 @@ def _pct(share) -> str:
 def _separating_text(sep) -> str:
     if not sep:
         return ""
+    if sep.get("expected_z") is not None:  # checked with the candidates refitted to each other
+        if sep["probe"] is None:
+            return f"; no probe maneuver separates them (expected z {_f(sep['expected_z'], '.2g')} per run)"
+        return (f"; separating maneuver: {sep['probe']['text']} (expected z {_f(sep['expected_z'], '.1f')} per "
+                f"run)")  # fmt: skip
     if sep["probe"] is None:
         return f"; no probe maneuver separates them (at most {_f(sep['separation'], '.2g')} noise std)"
     return f"; separating maneuver: {sep['probe']['text']} ({_f(sep['separation'], '.1f')} noise std)"

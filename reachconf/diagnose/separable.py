@@ -28,10 +28,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from reachconf.diagnose.fit import fit_candidate, window_losses
+from reachconf.diagnose.fit import fit_candidate, prepare, window_losses
 from reachconf.diagnose.residuals import residuals_and_prefix
 
-__all__ = ["mimic_loss", "pseudo_measurements"]
+__all__ = ["mimic_loss", "probe_mimic_losses", "pseudo_measurements"]
 
 
 def pseudo_measurements(fit, data, sigma, options) -> list:
@@ -93,3 +93,32 @@ def mimic_loss(base_model, fit_a, cand_b, data, sigma, fit_names, options, cache
     size = float(np.sum(window_losses(replace(bare, model=bare_model), pseudo, sigma, options)))
     return {"mimic_loss": D, "effect_loss": size,
             "params": {f"{k[0]}({k[1]})": [float(v) for v in th] for k, th in fb.effect_params.items()}}  # fmt: skip
+
+
+def probe_mimic_losses(base_model, fit_a, fit_b, data, probes, sigma, fit_names, options, cache) -> list:
+    """What a probe maneuver would add to the data: :func:`mimic_loss` on the suite and one probe together.
+
+    For each probe ``(t, U, Y)`` (``Y``: ``fit_a``'s predicted measurements on the probe, from its start) the
+    candidate of ``fit_b`` is refitted (effect and base parameters ``fit_names``, from ``fit_b``'s values) to
+    ``fit_a``'s predictions on the suite's windows *and* on the probe's; what it then cannot reproduce on the
+    probe is what one run of it would show if ``fit_a`` were right.  An operating point that a constant term
+    mimics alone (an offset for a drag at another speed) separates only together with the data.
+
+    Returns
+    -------
+    list of (float, int)
+        Per probe: the squared differences on the probe's windows (noise units) and the number of compared
+        samples they sum.
+    """
+    from reachconf.io.cases import TestCase
+
+    pseudo = pseudo_measurements(fit_a, data, sigma, options)
+    start = {**fit_b.base_params, **fit_b.effect_params}
+    out = []
+    for t, U, Y in probes:
+        case = TestCase("probe", "probe", t, U, Y, tuple(base_model.input_names), tuple(base_model.output_names))
+        probe = pseudo_measurements(fit_a, [prepare(base_model, case, options)], sigma, options)
+        fb = fit_candidate(base_model, fit_b.candidate, pseudo + probe, sigma, fit_names, options, cache, start=start)
+        D = float(np.sum(window_losses(fb, probe, sigma, options)))
+        out.append((D if np.isfinite(D) else np.inf, int(probe[0].idx.size * np.size(sigma))))
+    return out

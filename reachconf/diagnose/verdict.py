@@ -163,7 +163,20 @@ def verdict_text(record, best_entry, interrupted: bool, shrink=None, refit=None)
                        f"z = {a['z']:.1f} does not come from the difference of the two effects")  # fmt: skip
     text += f"the data cannot tell {' from '.join(options_text)} apart ({'; '.join(why)})"
     seps = [a["separating"] for a in alts if a.get("separating")]
-    if seps:
+    first = next((a for a in alts if a.get("separating")), None)
+    if seps and seps[0].get("expected_z") is not None:  # probes checked with the candidates refitted to each other
+        s, zn, other = seps[0], record["thresholds"]["z_name"], first["label"]
+        if s["probe"] is None:
+            text += (f"; no probe maneuver separates them (refitted to the named model's predictions on these data "
+                     f"and the best probe, {other} differs there by {s['refit_separation']:.2g} noise std, an "
+                     f"expected held-out z of {s['expected_z']:.2g} per {s['horizon']:g}-s run: the two may be the "
+                     f"same model on such inputs)")  # fmt: skip
+        else:
+            runs = "one run" if s["runs"] == 1 else f"{s['runs']} runs"
+            text += (f"; {s['probe']['text']} would separate them ({runs} of {s['horizon']:g} s for a held-out z of "
+                     f"{zn:g}: refitted to the named model's predictions on these data and the probe, {other} still "
+                     f"differs there by {s['refit_separation']:.2g} noise std)")  # fmt: skip
+    elif seps:
         s = seps[0]
         if s["probe"] is None:
             text += (f"; no probe maneuver separates them (their predicted measurements differ by at most "

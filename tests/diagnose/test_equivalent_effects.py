@@ -107,3 +107,64 @@ def test_a_refit_record_is_saved_as_json_also_for_a_parameter_whose_nominal_is_z
     assert refit["moved"]["b"] is None and set(refit["moved"]) == {"k", "d", "b"}
     rep.save(tmp_path / "r.json")
     assert json.loads((tmp_path / "r.json").read_text())["base"]["refit"]["moved"]["b"] is None
+
+
+def _unicycle_fits(seed=0):
+    """A unicycle whose translational speed is really 0.9 of the command, fitted two ways: an input scale k on v,
+    and output scales kx, ky on px and py — the same model whenever kx = ky = k, for any input."""
+    import sympy as sp
+
+    from reachconf.diagnose.fit import Candidate, fit_candidate, noise_level, prepare
+    from reachconf.diagnose.options import DiagnoseOptions
+    from reachconf.model.simulate import simulate
+
+    m = rc.Model(name="unicycle", states=("px", "py", "phi"), inputs=("v", "w"), disturbances=("d",), params={},
+                 dynamics=lambda s: [s.v * sp.cos(s.phi), s.v * sp.sin(s.phi), s.w + s.d])  # fmt: skip
+    rng = np.random.default_rng(seed)
+    cases = []
+    for i in range(4):
+        t = np.round(np.arange(0, 10.0 + 1e-9, 0.02), 10)
+        holds = np.repeat(rng.uniform(-1, 1, size=(t.size // 15 + 1, 2)), 15, axis=0)[: t.size]
+        U = np.column_stack([0.6 + 0.4 * holds[:, 0], 0.8 * holds[:, 1]])
+        X = simulate(m, [0.0, 0.0, rng.uniform(0, 6)], t, inputs=U * [0.9, 1.0], substeps=4)
+        Y = X + rng.normal(scale=[0.005, 0.005, 0.003], size=X.shape)
+        cases.append(rc.TestCase(f"c{i}", f"g{i % 2}", t, U, Y, ("v", "w"), ("px", "py", "phi")))
+    options = DiagnoseOptions()
+    data = [prepare(m, c, options) for c in cases]
+    sigma = noise_level(np.vstack([d.Y for d in data]))
+    cache = {}
+    a = fit_candidate(m, Candidate(((EFFECTS["input_scale"], "v"),)), data, sigma, (), options, cache)
+    b = fit_candidate(m, Candidate(((EFFECTS["output_scale"], "px"), (EFFECTS["output_scale"], "py"))), data, sigma,
+                      (), options, cache)  # fmt: skip
+    return m, data, sigma, options, cache, a, b
+
+
+def test_a_probe_does_not_separate_two_fits_of_one_model_that_differ_within_their_uncertainty():
+    """Found on a user's robot: 'a step on v_tra would separate them (0.5 noise std)' for an input gain and two
+    position-sensor gains, one model when the gains are equal — the 0.5 std was the point estimates' difference."""
+    from reachconf.diagnose.probes import separating_probe
+    from reachconf.diagnose.separable import probe_mimic_losses
+
+    m, data, sigma, options, cache, a, b = _unicycle_fits()
+    ((k,),), ((kx,), (ky,)) = a.effect_params.values(), b.effect_params.values()
+    assert abs(k - 0.9) < 0.01 and kx != k and ky != k  # three estimates of one gain, not equal
+    plain = separating_probe(a, b, data, sigma)  # the point estimates alone
+    assert plain["probe"] is not None and plain["separation"] > 0.05  # the old claim
+    refit = separating_probe(a, b, data, sigma, refit=lambda probes: probe_mimic_losses(
+        m, a, b, data, probes, sigma, (), options, cache), z=options.z_name)  # fmt: skip
+    assert refit["probe"] is None, refit
+    assert refit["expected_z"] < 0.01 and refit["refit_separation"] < 0.01
+
+
+def test_a_probe_that_separates_two_different_mechanisms_says_how_many_runs():
+    """The same refit does not hide a real difference: a scale on the input against an offset on it."""
+    from reachconf.diagnose.fit import Candidate, fit_candidate
+    from reachconf.diagnose.probes import MAX_PROBE_RUNS, separating_probe
+    from reachconf.diagnose.separable import probe_mimic_losses
+
+    m, data, sigma, options, cache, a, _ = _unicycle_fits()
+    b = fit_candidate(m, Candidate(((EFFECTS["input_offset"], "v"),)), data, sigma, (), options, cache)
+    sep = separating_probe(a, b, data, sigma, refit=lambda probes: probe_mimic_losses(
+        m, a, b, data, probes, sigma, (), options, cache), z=options.z_name)  # fmt: skip
+    assert sep["probe"] is not None and 1 <= sep["runs"] <= MAX_PROBE_RUNS
+    assert sep["expected_z"] * np.sqrt(sep["runs"]) >= options.z_name
