@@ -50,13 +50,19 @@ def test_a_c_parameter_that_multiplies_no_signal_is_not_a_stiffness():
 
 def test_a_refit_that_absorbs_the_gap_is_said_when_no_effect_is_named():
     record = {"status": "none", "thresholds": {"z_name": 3.0, "min_improvement": 0.3, "consistent_gain": 0.2,
-                                                 "max_spread": 0.0}}  # fmt: skip
+                                                 "max_spread": 0.0, "z_separate": 1.5}}  # fmt: skip
     best = {"label": "input_offset(q)", "prediction_gain": 0.24, "z_vs_base": 2.9, "parts": [["input_offset", "q"]]}
     refit = {"gain": 0.83, "z": 15.0, "moved": {"a1": -0.044, "g": -0.042, "A1": -0.013}, "params": {}}
     text = verdict_text(record, best, False, refit=refit)
     assert "refit of the base parameters itself removes 83 %" in text and "a1 -4.4 %" in text
     weak = dict(refit, z=1.0)
     assert "refit" not in verdict_text(record, best, False, refit=weak)
+    # a user's cart with a force gain of 1.2: m, k, c_d all moved by 1/1.2 - 1, 98 % of the loss at z = 1.9 over
+    # four cases — the data do not rule it out, and it is most of the gap: said (was silent below z_name)
+    cart = {"gain": 0.984, "z": 1.86, "moved": {"m": -0.158, "k": -0.161, "c_d": -0.133}, "params": {}}
+    assert "removes 98 %" in verdict_text(record, best, False, refit=cart)
+    small = dict(cart, gain=0.2)  # not most of the gap: not said
+    assert "refit" not in verdict_text(record, best, False, refit=small)
 
 
 def test_time_parameters_carry_their_unit_in_the_verdict():
