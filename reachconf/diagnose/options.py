@@ -39,7 +39,13 @@ class DiagnoseOptions:
         The prediction windows start from a state estimated from the
         ``2 smooth - 1`` samples before the start ("past": independent of the
         sensor noise that the recorded commands react to in closed loop) or
-        from the Savitzky–Golay smoothed measurement ("centered").
+        from the Savitzky–Golay smoothed measurement ("centered").  The
+        "past" estimate extrapolates a quadratic over those samples; where the
+        state's slope jumps with the input within that span (steps every
+        0.1–0.5 s, sampled at 50 Hz: 0.42 s) it is biased, and a dead time
+        absorbs the bias better than a lag.  For open-loop data (commands not
+        computed from the measurements) "centered" has no such bias; or make
+        ``smooth`` smaller.
     prior : float, default 0.1
         Relative standard deviation of the prior on the base parameters.
     param_bounds : float, default 0.5
