@@ -124,7 +124,9 @@ def plot_curve(cases, out: Path):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=os.environ.get("REACHCONF_DATA", "../shared/data") + "/pedestrians")
+    ap.add_argument("--data", default=str(Path(os.environ.get("REACHCONF_DATA") or Path(__file__).resolve().parents[2].parent
+                                                  / "shared" / "data") / "pedestrians"),
+                    help="data folder (default: ../shared/data/pedestrians from the repo root, or $REACHCONF_DATA)")
     ap.add_argument("--out", required=True)
     ap.add_argument("--disk", choices=("exact", "zonotope"), default="exact")
     args = ap.parse_args(argv)

@@ -42,6 +42,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import os
 from pathlib import Path
 
 import numpy as np
@@ -166,7 +167,9 @@ def main(argv=None):
     from reachconf.models import single_track
 
     ap = argparse.ArgumentParser(description="withheld effects injected into the real car's recording")
-    ap.add_argument("--data", default=str(here.parents[2].parent / "shared" / "data" / "realcar"))
+    ap.add_argument("--data", default=str(Path(os.environ.get("REACHCONF_DATA") or here.parents[2].parent / "shared" / "data")
+                                          / "realcar"),
+                    help="data folder (default: ../shared/data/realcar from the repo root, or $REACHCONF_DATA)")
     ap.add_argument("--out", required=True)
     ap.add_argument("--only", nargs="*", choices=sorted(INJECTIONS), default=list(INJECTIONS))
     ap.add_argument("--value", action="append", default=[], help="NAME=VALUE: another injected value")

@@ -321,7 +321,9 @@ def _summary(runs, scene, sname):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=os.environ.get("REACHCONF_DATA", "../shared/data") + "/pedestrians")
+    ap.add_argument("--data", default=str(Path(os.environ.get("REACHCONF_DATA") or Path(__file__).resolve().parents[2].parent
+                                                  / "shared" / "data") / "pedestrians"),
+                    help="data folder (default: ../shared/data/pedestrians from the repo root, or $REACHCONF_DATA)")
     ap.add_argument("--out", required=True)
     ap.add_argument("--starts", type=positive_int, default=12, help="start times per sequence and scenario")
     ap.add_argument("--sequences", nargs="+", default=["eth", "hotel"])

@@ -105,3 +105,11 @@ def test_table9_on_real_hotel_data(tmp_path):
     assert table["test_cases"] == len(causal)
     assert table["seconds"] < 60
     assert (tmp_path / "pass_rate_curve.png").exists()
+
+
+@pytest.mark.skipif(not (PED / "hotel" / "obsmat.txt").exists(), reason="BIWI data not available")
+def test_the_default_data_folder_does_not_depend_on_the_working_directory(tmp_path, monkeypatch):
+    # until 3 Dec the default was "../shared/data/pedestrians" from the caller's directory: only the repo root worked
+    monkeypatch.chdir(tmp_path)
+    assert load_run().main(["--out", str(tmp_path / "out")]) == 0
+    assert json.loads((tmp_path / "out" / "table9.json").read_text())["test_cases"] > 0
