@@ -58,7 +58,26 @@ def read_run(folder) -> dict:
     steps = np.flatnonzero(~(np.diff(data[:, header.index("t")]) > 0))
     if steps.size:
         raise rc.DataError(f"{path}: line {steps[0] + 3}: time does not increase ({steps.size} such steps)")
-    return {c: data[:, header.index(c)] for c in header}
+    cols = {c: data[:, header.index(c)] for c in header}
+    check_units(cols, path)
+    return cols
+
+
+#: the slope of ay against vx * omega may lie this far (factor) from 1: the kinematics of a car on the road,
+#: ay = vy' + vx omega, where vy' averages out over a run (0.992 on the recording; 0.276 with vx in km/h, 0.017 with
+#: omega in deg/s)
+UNITS_SLOPE = (0.5, 2.0)
+
+
+def check_units(cols, path) -> None:
+    """DataError unless ay, vx and omega are consistent in SI units (the README's own check: ay against vx omega)."""
+    x, y = cols["vx"] * cols["omega"], cols["ay"]
+    if float(np.std(x)) == 0.0:
+        return  # straight ahead at constant speed: nothing to compare
+    slope = float(np.polyfit(x, y, 1)[0])
+    if not UNITS_SLOPE[0] <= slope <= UNITS_SLOPE[1]:
+        raise rc.DataError(f"{path}: ay is {slope:.3g} times vx * omega (1 on a car, ay = vy' + vx omega): vx, "
+                           "omega or ay are not in m/s, rad/s and m/s^2 (km/h? deg/s?)")  # fmt: skip
 
 
 def repair_glitches(x, threshold=GLITCH):

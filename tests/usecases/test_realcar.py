@@ -565,3 +565,26 @@ def test_a_bad_cell_is_named_by_the_file_line(data_mod, tmp_path, cell, message)
         fh.write("\n".join(rows) + "\n")
     with pytest.raises(rc.DataError, match=message):
         data_mod.read_run(tmp_path)
+
+
+@pytest.mark.parametrize("factor, column, ok", [(1.0, "vx", True), (3.6, "vx", False), (180 / np.pi, "omega", False)])
+def test_speeds_in_other_units_are_refused(data_mod, tmp_path, factor, column, ok):
+    """A copy with vx in km/h ran as usual, with W boxes 3-5 times larger (an outside review); ay = vy' + vx omega
+    on a car, the data README's own check, tells."""
+    import gzip
+
+    import reachconf as rc
+
+    t = np.arange(3000) * 0.01
+    vals = {c: np.zeros_like(t) for c in data_mod.COLUMNS}
+    vals.update(t=t, vx=12 + 3 * np.sin(0.3 * t), omega=0.4 * np.sin(0.9 * t))
+    vals["ay"] = vals["vx"] * vals["omega"] + 0.2 * np.cos(0.9 * t)  # (+ vy', which averages out)
+    vals[column] = vals[column] * factor
+    with gzip.open(tmp_path / data_mod.FILE, "wt") as fh:
+        fh.write(",".join(data_mod.COLUMNS) + "\n")
+        np.savetxt(fh, np.column_stack([vals[c] for c in data_mod.COLUMNS]), delimiter=",", fmt="%.9g")
+    if ok:
+        assert data_mod.read_run(tmp_path)["vx"].size == t.size
+    else:
+        with pytest.raises(rc.DataError, match=r"not in m/s, rad/s and m/s\^2"):
+            data_mod.read_run(tmp_path)
