@@ -263,10 +263,21 @@ def plot_figure10(case, label, Y_fit, Y_def, out):
     plt.close(fig)
 
 
-def run_file(base, table, path, t_skip, seconds, aero_mode):
-    t_all = time.perf_counter()
+def prepare_file(base, table, path, t_skip, seconds):
+    """The case of one file and its eq. 78 refit: every file is read and checked before any work is done."""
     case, meta = make_case(base, path, t_skip, seconds)
-    fit, fit_info = refit_aero(table, base, case)
+    try:
+        fit, fit_info = refit_aero(table, base, case)
+    except rc.DataError as exc:  # the window, not the table, is too small (a short --seconds)
+        raise rc.DataError(f"{path}: the turbine's operating points in this window (t = {case.t[0]:g} to "
+                           f"{case.t[-1]:g} s) cover too little of the Cp/Ct table for eq. 78 — a longer --seconds? "
+                           f"({exc})") from exc  # fmt: skip
+    return case, meta, fit, fit_info
+
+
+def run_file(base, prepared, aero_mode):
+    t_all = time.perf_counter()
+    case, meta, fit, fit_info = prepared
     m_fit = base.with_params(**fit.params)
     m_def = base.with_params(**CP_DEFAULT, **CT_DEFAULT)
     model = m_fit if aero_mode == "fit" else m_def
@@ -313,10 +324,12 @@ def main(argv=None):
             raise rc.DataError("--seconds must be positive")
         table = read_performance_table(data / TABLE)
         base = wind_turbine()
+        prepared = {name: prepare_file(base, table, data / fname, t_skip, seconds)
+                    for name, (fname, t_skip, _) in FILES.items()}  # fmt: skip
         out.mkdir(parents=True, exist_ok=True)
         result, fig9 = {}, []
         for name, (fname, t_skip, label) in FILES.items():
-            case, res, entry, box, (Y_fit, Y_def), t_all = run_file(base, table, data / fname, t_skip, seconds, args.aero)
+            case, res, entry, box, (Y_fit, Y_def), t_all = run_file(base, prepared[name], args.aero)
             fig9.append((label, res.W_trace, box))
             if not args.no_plots:
                 plot_figure10(case, label, Y_fit, Y_def, out)

@@ -149,3 +149,34 @@ def test_bad_data_folder_exits_2(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("windturbine: error:") and "\n" not in err
     assert not (tmp_path / "o" / "windturbine.json").exists()
+
+
+@needs_data
+def test_a_broken_later_file_stops_the_run_before_any_work(tmp_path, capsys):
+    """A channel missing in the second file was found after the first file's work and picture (an outside review)."""
+    import gzip
+    import shutil
+
+    run = load_run()
+    data = tmp_path / "data"
+    shutil.copytree(WT, data, ignore=shutil.ignore_patterns("*.md"))
+    name = run.FILES["FASTFarm_TSinflow_8mps_T1"][0]
+    with gzip.open(data / name, "rt") as fh:
+        lines = fh.read().splitlines()
+    head = next(i for i, line in enumerate(lines) if "GenTq" in line)
+    lines[head] = lines[head].replace("GenTq", "GenTorque")  # the channel the model needs is not there
+    with gzip.open(data / name, "wt") as fh:
+        fh.write("\n".join(lines) + "\n")
+    out = tmp_path / "o"
+    assert run.main(["--data", str(data), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("windturbine: error:") and "\n" not in err and name in err
+    assert not out.exists()  # nothing written: the first file was not processed first
+
+
+@needs_data
+def test_too_short_a_window_says_so(tmp_path, capsys):
+    run = load_run()
+    assert run.main(["--data", str(WT), "--out", str(tmp_path / "o"), "--seconds", "0.15", "--no-plots"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "a longer --seconds?" in err and "\n" not in err
