@@ -68,6 +68,8 @@ def run_protocol(args) -> int:
     options.update(TUNING_RUN_THRESHOLDS)  # the tuning suites' run; the test set is run with the choice
     if getattr(args, "loss_scale", None):
         options["loss_scale"] = args.loss_scale
+    if getattr(args, "start_state", None):
+        options["start_state"] = args.start_state
     result = {"nominal": nominal, "fit_params": list(FIT), "options": options, "test_seed": args.test_seed}
     md = ["# Diagnosis validation protocol", ""]
     with Pool(args.workers, getattr(args, "scheduler", None)) as pool:  # the run's one pool

@@ -96,17 +96,22 @@ def prepare(model, case, options: DiagnoseOptions) -> PreparedCase:
         raise ConformanceError(f"test case {case.name!r} is shorter than one prediction window ({options.window} s)")
     win = min(options.smooth, t.size - (1 - t.size % 2))
     Ys = savgol_filter(Y, win, 2, axis=0) if win >= 3 else Y.copy()
-    first = 0
-    if options.start_state == "past":
+    first, lead = 0, 0
+    if options.start_state in ("past", "prefix"):
         M = 2 * options.smooth - 1
         if t.size > M + length + 2:
-            Ys[M:] = past_estimate(Y, M)[M:]
-            first = M
+            if options.start_state == "past":
+                Ys[M:] = past_estimate(Y, M)[M:]
+            else:  # from the centred estimate whose last sample is the one before the window (simulated, not scored)
+                lead = (win - 1) // 2 + 1
+            first = M  # (the same scored samples either way)
     starts = np.arange(first, t.size - length - 1, stride, dtype=np.int64)
     every = max(int(round(options.compare_step / dt)), 1)
     offsets = np.arange(length, 0, -every, dtype=np.int64)[::-1]  # always includes the window's last step
     idx = (starts[:, None] + offsets[None, :]).reshape(-1)
-    return PreparedCase(case.name, getattr(case, "group", "default"), t, U, Y, Ys, starts, length, case, offsets, idx)
+    starts, offsets = starts - lead, offsets + lead  # each window simulated from `lead` samples before its start
+    return PreparedCase(case.name, getattr(case, "group", "default"), t, U, Y, Ys, starts, length + lead, case,
+                        offsets, idx)  # fmt: skip
 
 
 @dataclass(frozen=True)

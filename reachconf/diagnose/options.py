@@ -35,7 +35,7 @@ class DiagnoseOptions:
         RK4 steps per sample interval in the predictions.
     smooth : int, default 11
         Savitzky–Golay window (samples, quadratic) of smoothed states.
-    start_state : {"past", "centered"}, default "past"
+    start_state : {"past", "centered", "prefix"}, default "past"
         The prediction windows start from a state estimated from the
         ``2 smooth - 1`` samples before the start ("past": independent of the
         sensor noise that the recorded commands react to in closed loop) or
@@ -45,7 +45,12 @@ class DiagnoseOptions:
         0.1–0.5 s, sampled at 50 Hz: 0.42 s) it is biased, and a dead time
         absorbs the bias better than a lag.  For open-loop data (commands not
         computed from the measurements) "centered" has no such bias; or make
-        ``smooth`` smaller.
+        ``smooth`` smaller.  "prefix": each window is simulated from the
+        centred (Savitzky–Golay) estimate ``(smooth + 1) / 2`` samples before
+        its start, whose last sample is the one before the start, through
+        the candidate's own model and effects; only the window's samples are
+        scored (the same samples as "past").  Unbiased where "past" is (a
+        0.05-s lag and dead time at 50 Hz: ``tests/diagnose/test_start_state.py``).
     prior : float, default 0.1
         Relative standard deviation of the prior on the base parameters.
     param_bounds : float, default 0.5
@@ -211,8 +216,9 @@ class DiagnoseOptions:
                 raise OptionsError(f"DiagnoseOptions.{name} must be in [0, 1), got {v!r}")
         if not (isinstance(self.interval, (int, float)) and 0 < self.interval < 1):
             raise OptionsError(f"DiagnoseOptions.interval must be in (0, 1), got {self.interval!r}")
-        if self.start_state not in ("past", "centered"):
-            raise OptionsError(f"DiagnoseOptions.start_state must be 'past' or 'centered', got {self.start_state!r}")
+        if self.start_state not in ("past", "centered", "prefix"):
+            raise OptionsError(f"DiagnoseOptions.start_state must be 'past', 'centered' or 'prefix', got "
+                               f"{self.start_state!r}")  # fmt: skip
         if self.interval_method not in INTERVAL_METHODS:
             raise OptionsError(f"DiagnoseOptions.interval_method must be one of {INTERVAL_METHODS}, "
                                f"got {self.interval_method!r}")  # fmt: skip
