@@ -48,6 +48,7 @@ _LAZY = {
     "simulate": "reachconf.model.simulate",
     "worst_case": "reachconf.model.worst_case",
     "modal_form": "reachconf.model.modal",
+    "with_state_disturbances": "reachconf.model.augment",
     "reach": "reachconf.reach",
     "reach_run": "reachconf.reach",
     "reach_streamed": "reachconf.reach_stream",

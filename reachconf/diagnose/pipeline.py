@@ -222,7 +222,8 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
     if len(cases) < 2:
         raise ConformanceError(f"diagnose needs at least two test cases (training and held-out), got {len(cases)}")
     if model.q == 0:
-        raise ConformanceError(f"model {model.name!r} has no disturbances: there is no gap box to diagnose")
+        raise ConformanceError(f"model {model.name!r} has no disturbances: there is no gap box to diagnose "
+                               "(rc.with_state_disturbances(model) adds one to every state equation)")  # fmt: skip
     try:
         state_estimate(model, cases[0])
     except ConformanceError:

@@ -174,3 +174,34 @@ def test_a_probe_that_separates_two_different_mechanisms_says_how_many_runs():
         m, a, b, data, probes, sigma, (), options, cache), z=options.z_name)  # fmt: skip
     assert sep["probe"] is not None and 1 <= sep["runs"] <= MAX_PROBE_RUNS
     assert sep["expected_z"] * np.sqrt(sep["runs"]) >= options.z_name
+
+
+def test_a_model_without_disturbances_gets_one_per_state_equation_to_be_diagnosed():
+    """The built-in diff_drive has no disturbances, and diagnose refused it with no way forward (an outside user)."""
+    import pytest
+
+    from reachconf.errors import ConformanceError, ModelError
+    from reachconf.model.simulate import simulate
+
+    robot = rc.models.diff_drive()
+    rng = np.random.default_rng(1)
+    cases = []
+    for i in range(4):
+        t = np.round(np.arange(0, 8.0 + 1e-9, 0.02), 10)
+        U = np.column_stack([0.6 + 0.3 * np.sin(0.7 * t + i), 0.5 * np.sin(1.3 * t + 2 * i)])
+        X = simulate(robot, [0.0, 0.0, 0.3 * i], t, inputs=U * [0.85, 1.0], substeps=4)  # a 0.85 wheel-speed gain
+        cases.append(rc.TestCase(f"c{i}", f"g{i % 2}", t, U, X + rng.normal(scale=0.003, size=X.shape),
+                                 robot.input_names, robot.output_names))  # fmt: skip
+    suite = rc.TestSuite(cases)
+    with pytest.raises(ConformanceError, match=r"rc.with_state_disturbances\(model\)"):
+        rc.diagnose(robot, suite, progress=False, workers=1)
+    model = rc.with_state_disturbances(robot)
+    assert model.disturbance_names == ("w_px", "w_py", "w_phi") and model.state_names == robot.state_names
+    x, u = np.array([1.0, 2.0, 0.4]), np.array([0.5, 0.2])
+    assert np.allclose(model.f(x, u, [0.1, -0.2, 0.3]), robot.f(x, u) + [0.1, -0.2, 0.3])
+    rep = rc.diagnose(model, suite, effects=[("input_scale", "v_tra"), ("input_offset", "v_rot")], progress=False,
+                      workers=1)  # fmt: skip
+    assert rep.decision["status"] == "named" and rep.decision["named"][0]["effect"] == "input_scale", rep.verdict
+    assert abs(rep.decision["named"][0]["params"]["k"] - 0.85) < 0.01
+    with pytest.raises(ModelError, match="taken"):
+        rc.with_state_disturbances(model)  # w_px exists now
