@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from reachconf.diagnose.effects import effect_param_name
-from reachconf.diagnose.options import DiagnoseOptions
+from reachconf.diagnose.options import PAST_SPAN_MAX, DiagnoseOptions
 from reachconf.diagnose.residuals import case_starts, received_inputs, window_residuals
 from reachconf.errors import ConformanceError, OptionsError
 from reachconf.io.cases import TestCase, case_arrays
@@ -97,10 +97,13 @@ def prepare(model, case, options: DiagnoseOptions) -> PreparedCase:
     win = min(options.smooth, t.size - (1 - t.size % 2))
     Ys = savgol_filter(Y, win, 2, axis=0) if win >= 3 else Y.copy()
     first, lead = 0, 0
-    if options.start_state in ("past", "prefix"):
-        M = 2 * options.smooth - 1
+    mode = options.start_state
+    M = 2 * options.smooth - 1
+    if mode == "auto":  # the "past" extrapolation only over the span where it was validated (DiagnoseOptions)
+        mode = "past" if M * dt <= PAST_SPAN_MAX + 1e-9 else "prefix"
+    if mode in ("past", "prefix"):
         if t.size > M + length + 2:
-            if options.start_state == "past":
+            if mode == "past":
                 Ys[M:] = past_estimate(Y, M)[M:]
             else:  # from the centred estimate whose last sample is the one before the window (simulated, not scored)
                 lead = (win - 1) // 2 + 1

@@ -54,3 +54,15 @@ def test_prefix_starts_tell_a_small_lag_from_a_dead_time_at_50_hz(kind, effect, 
     named = rep.decision["named"]
     assert rep.decision["status"] == "named" and [e["effect"] for e in named] == [effect], rep.verdict
     assert abs(named[0]["params"][param] - 0.05) < 0.005, rep.verdict
+
+
+def test_auto_keeps_the_validated_past_estimate_at_100_hz_and_uses_prefix_below():
+    from reachconf.diagnose.options import PAST_SPAN_MAX
+
+    for fs, expected in ((100.0, "past"), (50.0, "prefix")):
+        base, suite = _suite("lag", n=1, fs=fs)
+        auto = prepare(base, suite[0], DiagnoseOptions())
+        chosen = prepare(base, suite[0], DiagnoseOptions(start_state=expected))
+        assert DiagnoseOptions().start_state == "auto"
+        assert np.array_equal(auto.starts, chosen.starts) and np.array_equal(auto.Ys, chosen.Ys), fs
+        assert ((2 * DiagnoseOptions().smooth - 1) / fs <= PAST_SPAN_MAX) == (expected == "past")
