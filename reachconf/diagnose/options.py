@@ -51,7 +51,7 @@ class DiagnoseOptions:
         ``tests/diagnose/test_start_state.py``).  "auto": "past" while its
         span is at most :data:`PAST_SPAN_MAX` seconds — where it was
         validated (the vehicle protocol and the real car, 100 Hz: "prefix"
-        gave the same verdicts on three of its test seeds) — else "prefix".
+        gave the same verdicts on four of its test seeds) — else "prefix".
         "centered": the smoothed measurement itself (uses later samples; for
         open-loop data).
     prior : float, default 0.1
