@@ -53,7 +53,12 @@ class DiagnoseOptions:
         validated (the vehicle protocol and the real car, 100 Hz: "prefix"
         gave the same verdicts on four of its test seeds) — else "prefix".
         "centered": the smoothed measurement itself (uses later samples; for
-        open-loop data).
+        open-loop data).  An outside check (three plants, 20–200 Hz, 370
+        suites; ``docs/notes/diagnosis.md``) found "past" still biased at
+        100–120 Hz for 0.03-s lags (4 wrong names with "auto", none with
+        "prefix"): pass ``start_state="prefix"`` where small input timing
+        effects matter; it is not yet the default because the documented
+        real-car results were measured with "past".
     prior : float, default 0.1
         Relative standard deviation of the prior on the base parameters.
     param_bounds : float, default 0.5

@@ -180,6 +180,9 @@ class Model:
         self.disturbance_names = _names(
             disturbances if disturbances is not None else cls.disturbances, "disturbances"
         )
+        # the names also under the constructor's own words (``model.inputs`` was the empty class default: an outside
+        # user passed it to a TestCase and got "U must have shape (100, 0)")
+        self.states, self.inputs, self.disturbances = self.state_names, self.input_names, self.disturbance_names
         raw_params = params if params is not None else cls.params
         if not isinstance(raw_params, Mapping):
             raise ModelError(f"model {self.name!r}: params must be a mapping name -> value, got "

@@ -66,3 +66,10 @@ def test_auto_keeps_the_validated_past_estimate_at_100_hz_and_uses_prefix_below(
         assert DiagnoseOptions().start_state == "auto"
         assert np.array_equal(auto.starts, chosen.starts) and np.array_equal(auto.Ys, chosen.Ys), fs
         assert ((2 * DiagnoseOptions().smooth - 1) / fs <= PAST_SPAN_MAX) == (expected == "past")
+
+
+def test_a_models_names_are_also_under_the_constructors_words():
+    m = _tank()
+    assert m.states == m.state_names == ("h",) and m.inputs == m.input_names == ("q",)
+    assert m.disturbances == m.disturbance_names == ("w",)
+    assert m.with_params(A=10.0).inputs == ("q",)
