@@ -157,8 +157,14 @@ def judge(report, clean, truth, tolerance=0.3) -> dict:
             "verdict": report.verdict}  # fmt: skip
 
 
+def default_data() -> Path:
+    """``$REACHCONF_DATA/realcar``, else ``../shared/data/realcar`` from the repo root (until 3 Dec the default
+    pointed one folder too high, at ``/shared/data/realcar``)."""
+    root = os.environ.get("REACHCONF_DATA")
+    return (Path(root) if root else Path(__file__).resolve().parents[2].parent / "shared" / "data") / "realcar"
+
+
 def main(argv=None):
-    here = Path(__file__).resolve().parent
     from data import make_suite, noise_V, read_run
     from diagnosis import CANDIDATES, FIT, run_diagnosis
 
@@ -167,8 +173,7 @@ def main(argv=None):
     from reachconf.models import single_track
 
     ap = argparse.ArgumentParser(description="withheld effects injected into the real car's recording")
-    ap.add_argument("--data", default=str(Path(os.environ.get("REACHCONF_DATA") or here.parents[2].parent / "shared" / "data")
-                                          / "realcar"),
+    ap.add_argument("--data", default=str(default_data()),
                     help="data folder (default: ../shared/data/realcar from the repo root, or $REACHCONF_DATA)")
     ap.add_argument("--out", required=True)
     ap.add_argument("--only", nargs="*", choices=sorted(INJECTIONS), default=list(INJECTIONS))
@@ -177,6 +182,8 @@ def main(argv=None):
                     help="DiagnoseOptions.loss_scale (default: the library's default)")
     ap.add_argument("--reference-loss", default=None, choices=("excess", "difference"),
                     help="DiagnoseOptions.reference_loss (with --reference; default: the library's default)")
+    ap.add_argument("--start-state", default=None, choices=("auto", "past", "prefix", "centered"),
+                    help="DiagnoseOptions.start_state (default: the library's default)")
     ap.add_argument("--stop", type=float, default=None, help="only the first STOP seconds of the run")
     ap.add_argument("--signal-only", action="store_true", help="signal candidates only (no tyre models)")
     ap.add_argument("--stage2", action="store_true",
@@ -198,7 +205,8 @@ def main(argv=None):
     half = np.array([h for _, h in noise_V(cols).values()])
     V = rc.Interval(-half, half)
     opts = rc.DiagnoseOptions(**({"loss_scale": args.loss_scale} if args.loss_scale else {}),
-                              **({"reference_loss": args.reference_loss} if args.reference_loss else {}))
+                              **({"reference_loss": args.reference_loss} if args.reference_loss else {}),
+                              **({"start_state": args.start_state} if args.start_state else {}))
     effects = SIGNAL_CANDIDATES if args.signal_only else CANDIDATES
 
     def diag(c, reference=None):

@@ -588,3 +588,16 @@ def test_speeds_in_other_units_are_refused(data_mod, tmp_path, factor, column, o
     else:
         with pytest.raises(rc.DataError, match=r"not in m/s, rad/s and m/s\^2"):
             data_mod.read_run(tmp_path)
+
+
+@needs_data
+def test_the_withheld_checks_default_data_folder_is_the_shared_one(monkeypatch):
+    import importlib.util
+
+    from conftest import REPO_ROOT
+
+    monkeypatch.delenv("REACHCONF_DATA", raising=False)
+    spec = importlib.util.spec_from_file_location("realcar_withheld", REPO_ROOT / "examples" / "realcar" / "withheld.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert (mod.default_data() / "stanford_track_100hz.csv.gz").is_file()  # was /shared/data/realcar
