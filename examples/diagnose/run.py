@@ -109,7 +109,7 @@ def main(argv=None) -> int:
     ap.add_argument("--available", action="store_true",
                     help="protocol: only tabulate the stored results (e.g. of a run stopped at a deadline)")
     ap.add_argument("--no-tubes", action="store_true", help="protocol: test set without the before/after reach tubes")
-    ap.add_argument("--start-state", default=None, choices=("past", "centered", "prefix"),
+    ap.add_argument("--start-state", default=None, choices=("prefix", "auto", "past", "centered"),
                     help="protocol: DiagnoseOptions.start_state of every diagnosis (default: the library's default)")
     ap.add_argument("--loss-scale", default=None, choices=("sensor", "residual", "case"),
                     help="protocol: DiagnoseOptions.loss_scale of every diagnosis (default: the library's default)")

@@ -35,30 +35,26 @@ class DiagnoseOptions:
         RK4 steps per sample interval in the predictions.
     smooth : int, default 11
         Savitzky–Golay window (samples, quadratic) of smoothed states.
-    start_state : {"auto", "past", "prefix", "centered"}, default "auto"
+    start_state : {"prefix", "auto", "past", "centered"}, default "prefix"
         How each prediction window's start state is estimated from the
-        measurements.  "past": a quadratic extrapolated over the
-        ``2 smooth - 1`` samples before the start (independent of the sensor
-        noise that the recorded commands react to in closed loop).  Where the
-        state's slope jumps with the input within that span it is biased, and
-        a dead time absorbs the bias better than a lag (a 0.05-s lag named a
-        dead time at 50 Hz, span 0.42 s; right at 100 Hz, span 0.21 s).
-        "prefix": each window is simulated from the centred Savitzky–Golay
-        estimate ``(smooth + 1) / 2`` samples before its start (whose last
-        sample is the one before the start) through the candidate's own
-        model and effects; only the window's samples are scored, the same as
-        with "past" (both named right at 50 Hz:
-        ``tests/diagnose/test_start_state.py``).  "auto": "past" while its
-        span is at most :data:`PAST_SPAN_MAX` seconds — where it was
-        validated (the vehicle protocol and the real car, 100 Hz: "prefix"
-        gave the same verdicts on four of its test seeds) — else "prefix".
-        "centered": the smoothed measurement itself (uses later samples; for
-        open-loop data).  An outside check (three plants, 20–200 Hz, 370
-        suites; ``docs/notes/diagnosis.md``) found "past" still biased at
-        100–120 Hz for 0.03-s lags (4 wrong names with "auto", none with
-        "prefix"): pass ``start_state="prefix"`` where small input timing
-        effects matter; it is not yet the default because the documented
-        real-car results were measured with "past".
+        measurements.  "prefix": each window is simulated from the centred
+        Savitzky–Golay estimate ``(smooth + 1) / 2`` samples before its start
+        (whose last sample is the one before the start) through the
+        candidate's own model and effects; only the window's samples are
+        scored.  "past": a quadratic extrapolated over the ``2 smooth - 1``
+        samples before the start (independent of the sensor noise that the
+        recorded commands react to in closed loop); where the state's slope
+        jumps with the input within that span it is biased, and a dead time
+        absorbs the bias better than a lag (a 0.05-s lag named a dead time at
+        50 Hz, span 0.42 s: ``tests/diagnose/test_start_state.py``; 0.03-s
+        lags at 100–120 Hz in an outside check).  "auto": "past" while its
+        span is at most :data:`PAST_SPAN_MAX` seconds, else "prefix" (the
+        default of 3 Dec 2026).  "centered": the smoothed measurement itself
+        (uses later samples; for open-loop data).  "prefix" is the default
+        since 3 Dec 2026: an outside check (three plants, 20–200 Hz, 370
+        suites; ``docs/notes/diagnosis.md``) gave it 363 right names and no
+        wrong one ("auto" 4 wrong, "past" 9), and the vehicle protocol's
+        test seeds gave the same verdicts as with "past".
     prior : float, default 0.1
         Relative standard deviation of the prior on the base parameters.
     param_bounds : float, default 0.5
@@ -79,10 +75,12 @@ class DiagnoseOptions:
         An effect (or a second effect) is added only if its held-out gain is
         significant: paired z statistic of the held-out losses over clusters
         (cases) at least ``z_name``.
-    min_improvement : float, default 0.3
+    min_improvement : float, default 0.4
         ... and relevant: it lowers the held-out prediction loss of the model
         it is added to by at least this share (chosen on the validation
-        protocol's tuning suites, docs/diagnosis-validation.md; a second
+        protocol's tuning suites with ``start_state="prefix"``: grid
+        objective 0.883 against 0.800 at 0.3, one wrong name against two;
+        with "past" 0.3 was chosen; docs/diagnosis-validation.md; a second
         effect is judged with the case weights of the first effect's own
         misfit when ``loss_scale="case"``).
     consistent_gain : float, default 0.2
@@ -172,14 +170,14 @@ class DiagnoseOptions:
     compare_step: float = 0.05
     substeps: int = 1
     smooth: int = 11
-    start_state: str = "auto"
+    start_state: str = "prefix"
     prior: float = 0.1
     param_bounds: float = 0.5
     screen: int = 6
     pair_top: int = 4
     pair_next: int = 2
     z_name: float = 3.0
-    min_improvement: float = 0.3
+    min_improvement: float = 0.4
     consistent_gain: float = 0.2
     max_spread: float = 0.0
     z_separate: float = 1.5
