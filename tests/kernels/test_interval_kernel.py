@@ -251,3 +251,49 @@ def test_array_versions_match_the_scalar_kernel_and_contain_exact():
     for i in range(200):
         for p in (a[0, i], a[1, i]):
             assert inside(lo[i], hi[i], mpmath.mpf(p) ** 3)
+
+
+BINARY = ("add", "sub", "mul", "div", "min", "max", "hull")
+UNARY = ("neg", "sqr", "sqrt", "exp", "log", "atan", "tanh", "sin", "cos", "tan", "abs")
+
+
+def test_a_nan_bound_gives_nan_bounds():
+    """Audit: ``mul(nan, 1, 2, 3)`` was ``[2, 3]`` (comparisons drop NaN), and so were div, min, max, hull, sqr,
+    sqrt, exp, tanh, sin, cos, abs, pow for some NaN position: a finite box out of an undefined operand.  Every
+    kernel now returns ``(nan, nan)`` when any bound is NaN, in the scalar and the array versions."""
+    from reachconf_kernels import interval_arrays as ia
+
+    nan = math.nan
+    for name in BINARY:
+        for pos in range(4):
+            args = [0.5, 3.0, 2.0, 3.0]
+            args[pos] = nan
+            r = getattr(iv, name)(*args)
+            assert math.isnan(r[0]) and math.isnan(r[1]), (name, pos, r)
+            if name != "hull":
+                lo, hi = getattr(ia, name)(*(np.array([v]) for v in args))
+                assert np.isnan(lo[0]) and np.isnan(hi[0]), (name, pos)
+    for name in UNARY:
+        for pos in range(2):
+            args = [0.5, 0.7]
+            args[pos] = nan
+            r = getattr(iv, name)(*args)
+            assert math.isnan(r[0]) and math.isnan(r[1]), (name, pos, r)
+            lo, hi = getattr(ia, name)(*(np.array([v]) for v in args))
+            assert np.isnan(lo[0]) and np.isnan(hi[0]), (name, pos)
+    for k in (-3, -2, -1, 0, 1, 2, 3):
+        for args in ((nan, 0.7), (0.5, nan)):
+            r = iv.pow(*args, k)
+            assert math.isnan(r[0]) and math.isnan(r[1]), (k, args, r)
+    lo, hi = iv.matvec(np.array([[1.0, nan]]), np.array([[1.0, 2.0]]), np.ones(2), np.ones(2))
+    assert np.isnan(lo[0]) and np.isnan(hi[0])
+
+
+def test_the_user_interval_refuses_nan_bounds():
+    """The kernels propagate NaN; the user-facing set never holds one."""
+    from reachconf.errors import SetError
+    from reachconf.sets import Interval
+
+    for lo, hi in (([math.nan], [1.0]), ([0.0], [math.nan]), ([math.nan], [math.nan])):
+        with pytest.raises(SetError, match="NaN"):
+            Interval(lo, hi)
