@@ -19,6 +19,7 @@ from numba import njit
 
 
 _EPS = 2.220446049250313e-16
+_TINY = 5e-324  # the smallest subnormal, 2^-1074
 
 
 @njit(cache=True)
@@ -51,6 +52,27 @@ def interval_hull(c, G):
         lo[i] = np.nextafter(c[i] - r[i], -np.inf)
         hi[i] = np.nextafter(c[i] + r[i], np.inf)
     return lo, hi
+
+
+@njit(cache=True)
+def scale_box(lo, hi, alpha):
+    """The box ``[lo, hi]`` scaled about its centre by ``alpha >= 0``, rounded outward (``(lo, hi)`` arrays).
+
+    ``c = lo/2 + hi/2`` (``lo + hi`` may overflow) and ``r = (alpha (hi - lo)) / 2`` (halved last: ``alpha`` would
+    scale the halving's error) and ``c -+ r`` err by less than ``eps (|c| + r)`` plus ``3.5 * 2^-1075`` (a halving or
+    an underflowing product of subnormals errs by an absolute ``2^-1075``, which no relative term covers): the bounds
+    are widened by ``4 eps (|c| + r) + 4 * 2^-1074`` and then one float outward.  Overflow gives ``inf`` bounds.
+    """
+    n = lo.shape[0]
+    slo = np.empty(n)
+    shi = np.empty(n)
+    for i in range(n):
+        c = 0.5 * lo[i] + 0.5 * hi[i]
+        r = 0.5 * (alpha * (hi[i] - lo[i]))
+        slack = 4.0 * _EPS * (abs(c) + r) + 4.0 * _TINY
+        slo[i] = np.nextafter(c - r - slack, -np.inf)
+        shi[i] = np.nextafter(c + r + slack, np.inf)
+    return slo, shi
 
 
 @njit(cache=True)

@@ -138,9 +138,7 @@ class Interval:
             raise SetError(f"alpha must be a finite non-negative number, got {alpha!r}")
         if alpha == 1:
             return self
-        c, r = self.center, alpha * self.radius
-        slack = 4 * np.finfo(float).eps * (np.abs(c) + r)  # the rounding of c, r and c -+ r, with margin
-        return Interval(c - r - slack, c + r + slack)
+        return Interval(*zk.scale_box(self.lo, self.hi, float(alpha)))  # an overflow (inf) is refused as unbounded
 
     def is_subset(self, other: "Interval", tol: float = 0.0) -> bool:
         """Is the box inside the interval hull of ``other`` (up to ``tol``)?"""
