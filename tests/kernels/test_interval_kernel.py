@@ -297,3 +297,21 @@ def test_the_user_interval_refuses_nan_bounds():
     for lo, hi in (([math.nan], [1.0]), ([0.0], [math.nan]), ([math.nan], [math.nan])):
         with pytest.raises(SetError, match="NaN"):
             Interval(lo, hi)
+
+
+def test_sin_cos_of_huge_arguments_are_sound():
+    """Audit check (no change needed): beyond 1e15 an interval of a few ulps is nearly ``[-1, 1]``; sound (the
+    extremum test's widening ``8 eps |x|`` exceeds the rounding of ``k 2 pi``, and beyond 5.8e19 the integer ``k``
+    overflows only for point intervals, whose value ``sin(x)`` is then used).  Seeded points from 1e15 to 1e308
+    against mpmath with enough bits for the argument reduction."""
+    rng = np.random.default_rng(20261203)
+    with mpmath.workprec(1400):
+        for e in range(15, 309, 4):
+            for sign in (1.0, -1.0):
+                x = sign * float(rng.uniform(1, 10)) * 10.0**e
+                for w in (0.0, float(np.spacing(x)) * int(rng.integers(1, 4)), float(rng.uniform(0, 6)) * (e < 17)):
+                    lo, hi = (x, x + w) if sign > 0 else (x - w, x)
+                    for op, exact in ((iv.sin, mpmath.sin), (iv.cos, mpmath.cos)):
+                        rlo, rhi = op(lo, hi)
+                        for p in {lo, hi, lo / 2 + hi / 2}:
+                            assert mpmath.mpf(rlo) <= exact(mpmath.mpf(p)) <= mpmath.mpf(rhi), (op, lo, hi, p)
