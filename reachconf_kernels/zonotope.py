@@ -407,35 +407,6 @@ def compact(c, G, tol):
 
 
 @njit(cache=True)
-def polygon(c, G):
-    """Vertices (counter-clockwise) of a 2-D zonotope."""
-    m = G.shape[1]
-    # orient generators to the upper half plane
-    Gs = G.copy()
-    for j in range(m):
-        if Gs[1, j] < 0.0 or (Gs[1, j] == 0.0 and Gs[0, j] < 0.0):
-            Gs[:, j] = -Gs[:, j]
-    ang = np.empty(m)
-    for j in range(m):
-        ang[j] = math.atan2(Gs[1, j], Gs[0, j])
-    idx = np.argsort(ang)
-    # lowest point: c - sum(g)
-    start = c.copy()
-    for j in range(m):
-        start -= Gs[:, j]
-    V = np.empty((2 * m + 1, 2))
-    V[0] = start
-    p = start.copy()
-    for k in range(m):
-        p = p + 2.0 * Gs[:, idx[k]]
-        V[k + 1] = p
-    for k in range(m):
-        p = p - 2.0 * Gs[:, idx[k]]
-        V[m + k + 1] = p
-    return V[: 2 * m]
-
-
-@njit(cache=True)
 def piece_hulls(c, G, ng):
     """Interval hulls ``(lo, hi)`` (P, n) of sets stored back to back: centres ``c`` (P, n), generators in the
     columns of ``G`` (n, sum ng), set ``p`` owning ``ng[p]`` consecutive columns; rounded outward."""
