@@ -25,7 +25,8 @@ across a pole.  Generated model code checks these conditions itself and
 returns a status code instead of raising.
 
 Conventions: ``[0, 0] * [-inf, inf] = [0, 0]``; overflow gives ``inf``
-bounds, never NaN.
+bounds, never NaN; a NaN bound in any operand gives ``(nan, nan)`` (checked
+before the guards above, so no error is raised for it), never a finite box.
 """
 
 from __future__ import annotations
@@ -85,6 +86,17 @@ def _mx(a, b):
     return a if a > b else b
 
 
+@njit(cache=True, inline="always")
+def _nan2(a, b):
+    """Is either bound NaN (``x != x``)?  Such an operand is undefined: every kernel returns ``(nan, nan)``."""
+    return a != a or b != b
+
+
+@njit(cache=True, inline="always")
+def _nan4(a, b, c, d):
+    return a != a or b != b or c != c or d != d
+
+
 @njit(cache=True)
 def _down_n(x, k):
     for _ in range(k):
@@ -108,6 +120,8 @@ def const(x):
 @njit(cache=True, inline="always")
 def hull(alo, ahi, blo, bhi):
     """Interval hull of two intervals: ``(min(alo, blo), max(ahi, bhi))``."""
+    if _nan4(alo, ahi, blo, bhi):
+        return np.nan, np.nan
     return (alo if alo < blo else blo), (ahi if ahi > bhi else bhi)
 
 
@@ -120,18 +134,24 @@ def contains_zero(lo, hi):
 @njit(cache=True, inline="always")
 def add(alo, ahi, blo, bhi):
     """``[a] + [b]``, outward rounded."""
+    if _nan4(alo, ahi, blo, bhi):
+        return np.nan, np.nan
     return down(alo + blo), up(ahi + bhi)
 
 
 @njit(cache=True, inline="always")
 def sub(alo, ahi, blo, bhi):
     """``[a] - [b]``, outward rounded."""
+    if _nan4(alo, ahi, blo, bhi):
+        return np.nan, np.nan
     return down(alo - bhi), up(ahi - blo)
 
 
 @njit(cache=True, inline="always")
 def neg(alo, ahi):
     """``-[a]`` (exact)."""
+    if _nan2(alo, ahi):
+        return np.nan, np.nan
     return -ahi, -alo
 
 
@@ -152,6 +172,8 @@ def _outward4(a, b, c, d):
 @njit(cache=True)
 def mul(alo, ahi, blo, bhi):
     """``[a] * [b]``, outward rounded (``0 * inf = 0``)."""
+    if _nan4(alo, ahi, blo, bhi):
+        return np.nan, np.nan
     return _outward4(_prod(alo, blo), _prod(alo, bhi), _prod(ahi, blo), _prod(ahi, bhi))
 
 
@@ -166,6 +188,8 @@ def _quot(a, b):
 @njit(cache=True)
 def div(alo, ahi, blo, bhi):
     """``[a] / [b]``, outward rounded; ``ZeroDivisionError`` if ``[b]`` contains 0."""
+    if _nan4(alo, ahi, blo, bhi):
+        return np.nan, np.nan
     if blo <= 0.0 <= bhi:
         raise ZeroDivisionError("interval division by an interval containing 0")
     return _outward4(_quot(alo, blo), _quot(alo, bhi), _quot(ahi, blo), _quot(ahi, bhi))
@@ -174,6 +198,8 @@ def div(alo, ahi, blo, bhi):
 @njit(cache=True)
 def sqr(alo, ahi):
     """``[a]^2`` (tighter than ``[a] * [a]`` when ``[a]`` contains 0), outward rounded."""
+    if _nan2(alo, ahi):
+        return np.nan, np.nan
     if alo >= 0.0:
         return down(alo * alo), up(ahi * ahi)
     if ahi <= 0.0:
@@ -185,6 +211,8 @@ def sqr(alo, ahi):
 @njit(cache=True)
 def pow(alo, ahi, k):
     """Integer power ``x**k`` (k < 0 needs 0 outside the interval)."""
+    if _nan2(alo, ahi):
+        return np.nan, np.nan
     if k >= 0:
         return _pow_nonneg(alo, ahi, k)
     if alo <= 0.0 <= ahi:
@@ -247,6 +275,8 @@ def _pow_nonneg(alo, ahi, k):
 @njit(cache=True)
 def sqrt(alo, ahi):
     """``sqrt([a])``, outward rounded; ``ValueError`` below 0."""
+    if _nan2(alo, ahi):
+        return np.nan, np.nan
     if alo < 0.0:
         raise ValueError("interval sqrt of an interval reaching below 0")
     lo = down(math.sqrt(alo))
@@ -256,6 +286,8 @@ def sqrt(alo, ahi):
 @njit(cache=True)
 def exp(alo, ahi):
     """``exp([a])``, widened for the C library's rounding."""
+    if _nan2(alo, ahi):
+        return np.nan, np.nan
     lo = _down_n(math.exp(alo), TRANSCENDENTAL_ULPS)
     return (lo if lo > 0.0 else 0.0), _up_n(math.exp(ahi), TRANSCENDENTAL_ULPS)
 
@@ -263,6 +295,8 @@ def exp(alo, ahi):
 @njit(cache=True)
 def log(alo, ahi):
     """``log([a])``, widened for the C library's rounding; ``ValueError`` for ``lo <= 0``."""
+    if _nan2(alo, ahi):
+        return np.nan, np.nan
     if alo <= 0.0:
         raise ValueError("interval log of an interval reaching 0 or below")
     return _down_n(math.log(alo), TRANSCENDENTAL_ULPS), _up_n(math.log(ahi), TRANSCENDENTAL_ULPS)
@@ -271,12 +305,16 @@ def log(alo, ahi):
 @njit(cache=True)
 def atan(alo, ahi):
     """``atan([a])``, widened for the C library's rounding."""
+    if _nan2(alo, ahi):
+        return np.nan, np.nan
     return _down_n(math.atan(alo), TRANSCENDENTAL_ULPS), _up_n(math.atan(ahi), TRANSCENDENTAL_ULPS)
 
 
 @njit(cache=True)
 def tanh(alo, ahi):
     """``tanh([a])``, widened for the C library's rounding and clamped to ``[-1, 1]``."""
+    if _nan2(alo, ahi):
+        return np.nan, np.nan
     lo = _down_n(math.tanh(alo), TRANSCENDENTAL_ULPS)
     hi = _up_n(math.tanh(ahi), TRANSCENDENTAL_ULPS)
     return (lo if lo > -1.0 else -1.0), (hi if hi < 1.0 else 1.0)
@@ -309,6 +347,8 @@ def _contains_point(alo, ahi, offset):
 @njit(cache=True)
 def cos(alo, ahi):
     """``cos([a])`` with its extrema inside the interval, widened and clamped to ``[-1, 1]``."""
+    if _nan2(alo, ahi):
+        return np.nan, np.nan
     if ahi - alo >= _TWO_PI_LO or not (math.isfinite(alo) and math.isfinite(ahi)):
         return -1.0, 1.0
     ca = math.cos(alo)
@@ -327,6 +367,8 @@ def cos(alo, ahi):
 @njit(cache=True)
 def sin(alo, ahi):
     """``sin([a])`` with its extrema inside the interval, widened and clamped to ``[-1, 1]``."""
+    if _nan2(alo, ahi):
+        return np.nan, np.nan
     if ahi - alo >= _TWO_PI_LO or not (math.isfinite(alo) and math.isfinite(ahi)):
         return -1.0, 1.0
     sa = math.sin(alo)
@@ -345,6 +387,8 @@ def sin(alo, ahi):
 @njit(cache=True)
 def tan(alo, ahi):
     """``tan([a])``, widened; ``ValueError`` across a pole."""
+    if _nan2(alo, ahi):
+        return np.nan, np.nan
     if ahi - alo >= _PI_LO or _contains_point(alo, ahi, _HALF_PI) or _contains_point(alo, ahi, -_HALF_PI):
         raise ValueError("interval tan across a pole")
     margin = _mx(_trig_margin(alo), _trig_margin(ahi))
@@ -357,6 +401,8 @@ def tan(alo, ahi):
 @njit(cache=True)
 def abs(alo, ahi):
     """``|[a]|`` (exact)."""
+    if _nan2(alo, ahi):
+        return np.nan, np.nan
     if alo >= 0.0:
         return alo, ahi
     if ahi <= 0.0:
@@ -367,12 +413,16 @@ def abs(alo, ahi):
 @njit(cache=True)
 def min(alo, ahi, blo, bhi):
     """Elementwise minimum ``min([a], [b])`` (exact)."""
+    if _nan4(alo, ahi, blo, bhi):
+        return np.nan, np.nan
     return (alo if alo < blo else blo), (ahi if ahi < bhi else bhi)
 
 
 @njit(cache=True)
 def max(alo, ahi, blo, bhi):
     """Elementwise maximum ``max([a], [b])`` (exact)."""
+    if _nan4(alo, ahi, blo, bhi):
+        return np.nan, np.nan
     return (alo if alo > blo else blo), (ahi if ahi > bhi else bhi)
 
 

@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from reachconf_kernels.zonotope import compact, polygon
+from reachconf_kernels.zonotope import compact
+from reachconf_kernels.zonotope_polygon import polygon
 
 __all__ = ["merged_grid", "range_indptr", "fill_interval_pieces", "fill_point_pieces", "csr_hulls", "interval_hulls",
            "piece_polygons"]
@@ -157,12 +158,12 @@ def piece_polygons(c, G, off, ids, i0, i1):
 
     Set ``p``: centre ``c[p]``, generators the columns ``off[p]`` to ``off[p + 1]`` (excl.) of ``G``.  Each is
     compacted (:func:`~reachconf_kernels.zonotope.compact`, tol 0) and turned into its polygon
-    (:func:`~reachconf_kernels.zonotope.polygon`; a point without generators), as ``Zonotope.polygon`` does.
+    (:func:`~reachconf_kernels.zonotope_polygon.polygon`; a point without generators), as ``Zonotope.polygon`` does.
     Returns ``(V, starts)``: the vertices of set ``ids[k]`` are ``V[starts[k]:starts[k + 1]]``.
     """
     cap = 0
     for k in range(ids.size):
-        cap += 2 * (off[ids[k] + 1] - off[ids[k]]) + 4
+        cap += 2 * (off[ids[k] + 1] - off[ids[k]]) + 8  # compact may add 2 generators, the polygon's margin 2
     V = np.empty((cap, 2))
     starts = np.zeros(ids.size + 1, dtype=np.int64)
     pos = 0

@@ -19,6 +19,7 @@ from numba import njit
 
 
 _EPS = 2.220446049250313e-16
+_TINY = 5e-324  # the smallest subnormal, 2^-1074
 
 
 @njit(cache=True)
@@ -51,6 +52,27 @@ def interval_hull(c, G):
         lo[i] = np.nextafter(c[i] - r[i], -np.inf)
         hi[i] = np.nextafter(c[i] + r[i], np.inf)
     return lo, hi
+
+
+@njit(cache=True)
+def scale_box(lo, hi, alpha):
+    """The box ``[lo, hi]`` scaled about its centre by ``alpha >= 0``, rounded outward (``(lo, hi)`` arrays).
+
+    ``c = lo/2 + hi/2`` (``lo + hi`` may overflow) and ``r = (alpha (hi - lo)) / 2`` (halved last: ``alpha`` would
+    scale the halving's error) and ``c -+ r`` err by less than ``eps (|c| + r)`` plus ``3.5 * 2^-1075`` (a halving or
+    an underflowing product of subnormals errs by an absolute ``2^-1075``, which no relative term covers): the bounds
+    are widened by ``4 eps (|c| + r) + 4 * 2^-1074`` and then one float outward.  Overflow gives ``inf`` bounds.
+    """
+    n = lo.shape[0]
+    slo = np.empty(n)
+    shi = np.empty(n)
+    for i in range(n):
+        c = 0.5 * lo[i] + 0.5 * hi[i]
+        r = 0.5 * (alpha * (hi[i] - lo[i]))
+        slack = 4.0 * _EPS * (abs(c) + r) + 4.0 * _TINY
+        slo[i] = np.nextafter(c - r - slack, -np.inf)
+        shi[i] = np.nextafter(c + r + slack, np.inf)
+    return slo, shi
 
 
 @njit(cache=True)
@@ -382,35 +404,6 @@ def compact(c, G, tol):
             out[i, k] = box[i] * (1.0 + 4e-16)
             k += 1
     return c.copy(), out[:, :k].copy()
-
-
-@njit(cache=True)
-def polygon(c, G):
-    """Vertices (counter-clockwise) of a 2-D zonotope."""
-    m = G.shape[1]
-    # orient generators to the upper half plane
-    Gs = G.copy()
-    for j in range(m):
-        if Gs[1, j] < 0.0 or (Gs[1, j] == 0.0 and Gs[0, j] < 0.0):
-            Gs[:, j] = -Gs[:, j]
-    ang = np.empty(m)
-    for j in range(m):
-        ang[j] = math.atan2(Gs[1, j], Gs[0, j])
-    idx = np.argsort(ang)
-    # lowest point: c - sum(g)
-    start = c.copy()
-    for j in range(m):
-        start -= Gs[:, j]
-    V = np.empty((2 * m + 1, 2))
-    V[0] = start
-    p = start.copy()
-    for k in range(m):
-        p = p + 2.0 * Gs[:, idx[k]]
-        V[k + 1] = p
-    for k in range(m):
-        p = p - 2.0 * Gs[:, idx[k]]
-        V[m + k + 1] = p
-    return V[: 2 * m]
 
 
 @njit(cache=True)

@@ -17,6 +17,7 @@ from reachconf.sets.reduction import reduction_method
 from reachconf.sets.validate import as_count, as_points, as_rng, as_tolerance, as_vector, is_finite_number
 from reachconf_kernels import quadmap as qk
 from reachconf_kernels import zonotope as zk
+from reachconf_kernels.zonotope_polygon import polygon as zonotope_polygon
 
 __all__ = ["Interval", "Zonotope"]
 
@@ -138,9 +139,7 @@ class Interval:
             raise SetError(f"alpha must be a finite non-negative number, got {alpha!r}")
         if alpha == 1:
             return self
-        c, r = self.center, alpha * self.radius
-        slack = 4 * np.finfo(float).eps * (np.abs(c) + r)  # the rounding of c, r and c -+ r, with margin
-        return Interval(c - r - slack, c + r + slack)
+        return Interval(*zk.scale_box(self.lo, self.hi, float(alpha)))  # an overflow (inf) is refused as unbounded
 
     def is_subset(self, other: "Interval", tol: float = 0.0) -> bool:
         """Is the box inside the interval hull of ``other`` (up to ``tol``)?"""
@@ -429,12 +428,12 @@ class Zonotope:
         return Zonotope(self.center, alpha * self.generators)
 
     def polygon(self, dims=(0, 1)) -> np.ndarray:
-        """Vertices of the 2-D projection, counter-clockwise, shape (V, 2)."""
+        """Vertices (V, 2) of a convex polygon, counter-clockwise, that contains the 2-D projection (by ulps)."""
         Z = self.project(dims) if self.dim != 2 or tuple(dims) != (0, 1) else self
         Z = Z.compact(0.0)
         if Z.generators.shape[1] == 0:
             return Z.center.reshape(1, 2).copy()
-        return zk.polygon(*Z._cg())
+        return zonotope_polygon(*Z._cg())
 
     def contains(self, points, tol: float = 1e-9):
         """Point containment: ``||p - c||_Z <= 1 + tol`` (zonotope norm), exact up to ``tol``.

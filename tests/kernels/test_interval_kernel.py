@@ -251,3 +251,67 @@ def test_array_versions_match_the_scalar_kernel_and_contain_exact():
     for i in range(200):
         for p in (a[0, i], a[1, i]):
             assert inside(lo[i], hi[i], mpmath.mpf(p) ** 3)
+
+
+BINARY = ("add", "sub", "mul", "div", "min", "max", "hull")
+UNARY = ("neg", "sqr", "sqrt", "exp", "log", "atan", "tanh", "sin", "cos", "tan", "abs")
+
+
+def test_a_nan_bound_gives_nan_bounds():
+    """Audit: ``mul(nan, 1, 2, 3)`` was ``[2, 3]`` (comparisons drop NaN), and so were div, min, max, hull, sqr,
+    sqrt, exp, tanh, sin, cos, abs, pow for some NaN position: a finite box out of an undefined operand.  Every
+    kernel now returns ``(nan, nan)`` when any bound is NaN, in the scalar and the array versions."""
+    from reachconf_kernels import interval_arrays as ia
+
+    nan = math.nan
+    for name in BINARY:
+        for pos in range(4):
+            args = [0.5, 3.0, 2.0, 3.0]
+            args[pos] = nan
+            r = getattr(iv, name)(*args)
+            assert math.isnan(r[0]) and math.isnan(r[1]), (name, pos, r)
+            if name != "hull":
+                lo, hi = getattr(ia, name)(*(np.array([v]) for v in args))
+                assert np.isnan(lo[0]) and np.isnan(hi[0]), (name, pos)
+    for name in UNARY:
+        for pos in range(2):
+            args = [0.5, 0.7]
+            args[pos] = nan
+            r = getattr(iv, name)(*args)
+            assert math.isnan(r[0]) and math.isnan(r[1]), (name, pos, r)
+            lo, hi = getattr(ia, name)(*(np.array([v]) for v in args))
+            assert np.isnan(lo[0]) and np.isnan(hi[0]), (name, pos)
+    for k in (-3, -2, -1, 0, 1, 2, 3):
+        for args in ((nan, 0.7), (0.5, nan)):
+            r = iv.pow(*args, k)
+            assert math.isnan(r[0]) and math.isnan(r[1]), (k, args, r)
+    lo, hi = iv.matvec(np.array([[1.0, nan]]), np.array([[1.0, 2.0]]), np.ones(2), np.ones(2))
+    assert np.isnan(lo[0]) and np.isnan(hi[0])
+
+
+def test_the_user_interval_refuses_nan_bounds():
+    """The kernels propagate NaN; the user-facing set never holds one."""
+    from reachconf.errors import SetError
+    from reachconf.sets import Interval
+
+    for lo, hi in (([math.nan], [1.0]), ([0.0], [math.nan]), ([math.nan], [math.nan])):
+        with pytest.raises(SetError, match="NaN"):
+            Interval(lo, hi)
+
+
+def test_sin_cos_of_huge_arguments_are_sound():
+    """Audit check (no change needed): beyond 1e15 an interval of a few ulps is nearly ``[-1, 1]``; sound (the
+    extremum test's widening ``8 eps |x|`` exceeds the rounding of ``k 2 pi``, and beyond 5.8e19 the integer ``k``
+    overflows only for point intervals, whose value ``sin(x)`` is then used).  Seeded points from 1e15 to 1e308
+    against mpmath with enough bits for the argument reduction."""
+    rng = np.random.default_rng(20261203)
+    with mpmath.workprec(1400):
+        for e in range(15, 309, 4):
+            for sign in (1.0, -1.0):
+                x = sign * float(rng.uniform(1, 10)) * 10.0**e
+                for w in (0.0, float(np.spacing(x)) * int(rng.integers(1, 4)), float(rng.uniform(0, 6)) * (e < 17)):
+                    lo, hi = (x, x + w) if sign > 0 else (x - w, x)
+                    for op, exact in ((iv.sin, mpmath.sin), (iv.cos, mpmath.cos)):
+                        rlo, rhi = op(lo, hi)
+                        for p in {lo, hi, lo / 2 + hi / 2}:
+                            assert mpmath.mpf(rlo) <= exact(mpmath.mpf(p)) <= mpmath.mpf(rhi), (op, lo, hi, p)

@@ -102,3 +102,43 @@ def test_reach_quadratic_terms_carry_the_rounding(seed):
     maps = (qk.quad_map_rounding(cz, Gz, cd, Gd, Q) + qk.quad_map_rounding(cd, Gd, cz, Gz, Q)
             + qk.quad_map_rounding(cd, Gd, cd, Gd, Q))  # fmt: skip
     np.testing.assert_allclose(prnd, 1.25 * maps, rtol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(24))
+def test_rounding_bound_covers_underflow(seed):
+    """Audit: below about 1e-155 the products underflow (an absolute error of up to 2^-1075 each, which the relative
+    bound does not cover; beyond 1e-162 a product of three is 0 and so was the bound, though the exact map is not).
+    Centres and generators near 1e-160 (and a large set times a tiny one, where the tiny part's underflow is scaled
+    up), checked against exact rationals; the absolute term stays below 1e-300 of the sets' size."""
+    rng = np.random.default_rng(1000 + seed)
+    n, m1, m2, k = int(rng.integers(1, 4)), int(rng.integers(0, 3)), int(rng.integers(0, 3)), int(rng.integers(1, 3))
+    kind = seed % 4
+    s1, s2, sq = {0: (1e-160, 1e-160, 1.0), 1: (1e-200, 1e-200, 1.0), 2: (1e150, 1e-170, 1e-150),
+                  3: (1.0, 1e-160, 1e-150)}[kind]  # fmt: skip
+    c1, G1 = rng.normal(size=n) * s1, rng.normal(size=(n, m1)) * s1 * 10.0 ** rng.uniform(-2, 0)
+    c2, G2 = rng.normal(size=n) * s2, rng.normal(size=(n, m2)) * s2 * 10.0 ** rng.uniform(-2, 0)
+    Q = rng.normal(size=(k, n, n)) * sq
+    for same, (c, G), (a, b) in (
+        (True, qk.quad_map(c1, G1, Q), ((c1, G1), (c1, G1))),
+        (True, qk.quad_map(c2, G2, Q), ((c2, G2), (c2, G2))),
+        (False, qk.quad_map_mixed(c1, G1, c2, G2, Q), ((c1, G1), (c2, G2))),
+        (False, qk.quad_map_mixed(c2, G2, c1, G1, Q), ((c2, G2), (c1, G1))),
+    ):
+        cs, gs = _exact_quad_map(*a, *b, Q, same)
+        rnd = qk.quad_map_rounding(*a, *b, Q)
+        dev = _deviation(c, G, cs, gs)
+        assert all(d <= Fraction(float(r)) for d, r in zip(dev, rnd)), (kind, same, dev, rnd)
+        z1 = np.abs(np.column_stack([a[0], a[1]])).sum()
+        z2 = np.abs(np.column_stack([b[0], b[1]])).sum()
+        relative = [1e-12 * float(Fraction(z1) * Fraction(q) * Fraction(z2)) for q in np.abs(Q).max(axis=(1, 2))]
+        assert np.all(rnd <= np.array(relative) + 1e-300 * (1.0 + z1)), (kind, rnd, relative)
+
+
+def test_a_zero_map_has_no_rounding_box():
+    """The absolute term is added only where some exact product is non-zero (a zero row of Q or a zero set: 0)."""
+    c, G = np.array([1e-200, 0.0]), np.array([[1e-200], [0.0]])
+    Q = np.zeros((3, 2, 2))
+    Q[1, 0, 0] = 1.0
+    Q[2, 1, 1] = 1.0  # meets only the zero coordinate
+    assert list(qk.quad_map_rounding(c, G, c, G, Q)) == [0.0, qk.quad_map_rounding(c, G, c, G, Q)[1], 0.0]
+    assert qk.quad_map_rounding(c, G, c, G, Q)[1] > 0.0  # 1e-400 exactly, 0 in floats

@@ -56,3 +56,37 @@ def test_scale_encloses_the_exact_scaled_box():
             slack = Fraction(16 * np.finfo(float).eps) * (abs(c) + r)  # and tight: a few ulps wider at most
             assert c - r - Fraction(box.lo[i]) <= slack and Fraction(box.hi[i]) - (c + r) <= slack
     assert B.scale(1.0) is B and B.scale(1) is B
+
+
+def _exact_scaled(lo, hi, alpha):
+    c = (Fraction(lo) + Fraction(hi)) / 2
+    r = (Fraction(hi) - Fraction(lo)) / 2 * Fraction(alpha)
+    return c - r, c + r
+
+
+def test_scale_is_outward_on_subnormal_and_tiny_boxes():
+    """Audit: the relative slack ``4 eps (|c| + r)`` of scale vanishes on subnormals, where halving and scaling
+    round by an absolute amount: ``[5e-324, 1.5e-323].scale(0.5)`` was the point ``1e-323`` (the exact box is
+    ``[7.5e-324, 1.25e-323]``) and ``[0, 5e-324].scale(3)`` the point 0.  Seeded boxes from the smallest subnormal
+    to 1e300, checked with exact fractions."""
+    tiny = 5e-324
+    cases = [(5e-324, 1.5e-323, 0.5), (0.0, 5e-324, 3.0), (-5e-324, 5e-324, 0.3), (2.2250738585072014e-308,
+             2.225073858507202e-308, 0.7), (-1e-310, 3e-320, 1.9), (1e300, 1.5e300, 0.25), (-8e307, 8e307, 0.0), (1.7e308, 1.79e308, 0.5)]  # fmt: skip
+    rng = np.random.default_rng(20261203)
+    for _ in range(3000):
+        e = rng.integers(-1074, 1024, size=2)
+        m = rng.integers(0, 5, size=2) if rng.random() < 0.3 else rng.random(2)  # small integer multiples too
+        a, b = (float(np.ldexp(float(mm), int(ee))) * float(rng.choice([-1, 1])) for mm, ee in zip(m, e))
+        if rng.random() < 0.3:
+            b = a + tiny * float(rng.integers(0, 9))
+        lo, hi = min(a, b), max(a, b)
+        alpha = float(rng.choice([rng.random() * 4, float(rng.integers(0, 5)), 10.0 ** rng.uniform(-300, 3)]))
+        if np.isfinite(hi - lo) and np.isfinite(alpha * (hi - lo)):
+            cases.append((lo, hi, alpha))
+    for lo, hi, alpha in cases:
+        box = rc.Interval([lo], [hi]).scale(alpha)
+        elo, ehi = _exact_scaled(lo, hi, alpha)
+        assert Fraction(box.lo[0]) <= elo and ehi <= Fraction(box.hi[0]), (lo, hi, alpha, box)
+        # tight: a few ulps of the magnitude and a few subnormals wider at most
+        slack = Fraction(16 * np.finfo(float).eps) * (abs(elo) + abs(ehi)) + 16 * Fraction(tiny)
+        assert elo - Fraction(box.lo[0]) <= slack and Fraction(box.hi[0]) - ehi <= slack, (lo, hi, alpha, box)
