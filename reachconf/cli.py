@@ -417,7 +417,17 @@ def _in_main_thread() -> bool:
 
 def _on_ctrl_c(signum, frame):  # any error after this counts as the interruption (_caused_by_ctrl_c)
     _on_ctrl_c.pressed = True
+    if frame is not None and _swallows_exceptions(frame):  # raised here it would be printed and ignored, the run
+        os.kill(os.getpid(), signal.SIGINT)  # going on: deliver it again once that code has returned
+        return
     raise KeyboardInterrupt
+
+
+def _swallows_exceptions(frame) -> bool:
+    """Is ``frame`` code whose exceptions Python prints and ignores (a weakref callback of the import system, as
+    when Ctrl-C comes while numpy is imported; a ``__del__``)?"""
+    code = frame.f_code
+    return code.co_name == "__del__" or (code.co_name == "cb" and code.co_filename.startswith("<frozen importlib"))
 
 
 def _caused_by_ctrl_c(exc: BaseException) -> bool:

@@ -72,3 +72,22 @@ def test_ctrl_c_during_the_work_keeps_the_earlier_result_and_saves_the_finished_
     saved = json.loads(partial.read_text())
     assert saved["interrupted"] is True and "lane_change_01" in saved["partial"]
     assert saved["partial"]["lane_change_01"]["trace"]["verdict"] in ("conformant", "not_conformant", "undecided")
+
+
+def test_ctrl_c_inside_code_that_swallows_exceptions_is_delivered_again(monkeypatch):
+    """CI saw Ctrl-C land in importlib's weakref callback while numpy was imported: Python printed "Exception
+    ignored", the KeyboardInterrupt was lost and the run finished with status 0."""
+    from types import SimpleNamespace
+
+    from reachconf import cli
+
+    sent = []
+    monkeypatch.setattr(cli.os, "kill", lambda pid, sig: sent.append((pid, sig)))
+    callback = SimpleNamespace(f_code=SimpleNamespace(co_name="cb", co_filename="<frozen importlib._bootstrap>"))
+    assert cli._on_ctrl_c(signal.SIGINT, callback) is None  # not raised where it would be ignored ...
+    assert sent == [(os.getpid(), signal.SIGINT)] and cli._on_ctrl_c.pressed  # ... but sent again
+    finalizer = SimpleNamespace(f_code=SimpleNamespace(co_name="__del__", co_filename="x.py"))
+    assert cli._on_ctrl_c(signal.SIGINT, finalizer) is None and len(sent) == 2
+    with pytest.raises(KeyboardInterrupt):  # anywhere else: raised at once
+        cli._on_ctrl_c(signal.SIGINT, sys._getframe())
+    assert len(sent) == 2
