@@ -11,7 +11,8 @@ maneuvers under the tracking controller; the suite records the controller's
 * :func:`tuning_specs` — the suites every threshold and rule is chosen on:
   maneuvers made for the diagnosis (lateral chirps and single-frequency
   weaves, at constant or swinging speed), effect values on a fixed grid,
-  the campaign's noise level;
+  the campaign's noise level and (since 3 Dec) a block at 0.5, 0.7, 1.4 and
+  2 times it;
 * :func:`test_specs` — the suites the result is reported on: the eight
   standard maneuvers (lane change, swerve, double lane change, slalom at 2 and
   4 m/s²; six of them per suite, three runs each), effect values drawn at
@@ -117,7 +118,8 @@ def _spec(role, i, category, maneuvers, effect, noise, seed, repetitions=3):
 
 
 def tuning_specs(seed: int = 1) -> list:
-    """The tuning suites (fixed effect grid, tuning maneuvers, campaign noise)."""
+    """The tuning suites: a fixed effect grid on the tuning maneuvers, 24 at the campaign's noise and 13 at
+    0.5-2 times it (the noise block)."""
     M = [(code, None) for code in TUNING_MANEUVERS]
     grid = [
         ("clean", None), ("clean", None), ("clean", None), ("clean", None),
@@ -137,11 +139,23 @@ def tuning_specs(seed: int = 1) -> list:
         ("two effects", _combine(steering_lag(0.15), accel_offset(0.15))),
         ("two effects", _combine(steering_dead_time(0.12), yaw_offset(-0.8))),
     ]  # fmt: skip
+    # the noise block (added 3 Dec): the test sets' noise range, 0.5-2x, on a fixed grid of levels, with clean
+    # suites at both ends and each category's weak values, where the naming threshold matters
+    noisy = [
+        ("clean", None, 0.5), ("clean", None, 1.4), ("clean", None, 2.0),
+        ("steering lag", steering_lag(0.06), 1.4), ("steering lag", steering_lag(0.22), 0.7),
+        ("steering dead time", steering_dead_time(0.05), 2.0), ("steering dead time", steering_dead_time(0.18), 1.4),
+        ("steering offset", steering_offset(0.6), 1.4),
+        ("yaw offset", yaw_offset(0.35), 0.7), ("yaw offset", yaw_offset(-0.6), 2.0),
+        ("accel offset", accel_offset(0.18), 2.0),
+        ("two effects", _combine(steering_dead_time(0.1), yaw_offset(0.5)), 1.4),
+        ("two effects", _combine(steering_lag(0.1), accel_offset(-0.2)), 2.0),
+    ]  # fmt: skip
     rng = np.random.default_rng(seed)
     out = []
-    for i, (cat, eff) in enumerate(grid):
+    for i, (cat, eff, noise) in enumerate([(c, e, 1.0) for c, e in grid] + noisy):
         chosen = [M[j] for j in sorted(rng.choice(len(M), size=4, replace=False))]
-        out.append(_spec("tuning", i, cat, chosen, eff, 1.0, seed * 100_000 + 1000 * i))
+        out.append(_spec("tuning", i, cat, chosen, eff, noise, seed * 100_000 + 1000 * i))
     return out
 
 

@@ -62,7 +62,9 @@ def test_protocol_sets_are_made_differently():
     assert taus and min(taus) >= 0.05 and max(taus) <= 0.25 and delays and min(delays) >= 0.04 and max(delays) <= 0.2
     assert any(len(s.truth) >= 2 and len({t["target"] for t in s.truth}) == 2 for s in test)  # two effects at once
     assert len({round(s.noise, 3) for s in test}) > 5 and all(0.5 <= s.noise <= 2.0 for s in test)
-    assert {s.noise for s in tuning} == {1.0}
+    assert sum(s.noise == 1.0 for s in tuning) == 24  # the campaign's noise, and a block across the test range
+    assert {s.noise for s in tuning} - {1.0} == {0.5, 0.7, 1.4, 2.0}
+    assert {s.category for s in tuning if s.noise != 1.0} >= {"clean", "yaw offset", "steering lag", "two effects"}
     order = protocol_eval.interleaved(test)  # a run stopped early has a sample of every category
     assert sorted(s.name for s in order) == sorted(s.name for s in test)
     assert len({s.category for s in order[:8]}) == len({s.category for s in test}) == 8
