@@ -153,3 +153,32 @@ def rk4_windows(f, X0, starts, U, times, p, q, length, substeps):
                 rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
             out[j, i] = x
     return out
+
+
+@njit((FN_POINT_VEC, f8_2, types.int64[:], f8_2, f8_1, f8_1, types.int64, types.int64, types.int64), cache=True)
+def rk4_windows_substep_inputs(f, X0, starts, U, times, p, q, length, substeps):
+    """:func:`rk4_windows` with an input value per RK4 substep: ``U[k * substeps + s]`` acts on substep ``s`` of
+    ``[t_k, t_k+1)`` (``U`` has ``(len(times) - 1) * substeps + 1`` rows), e.g. a lag's output held over each
+    substep instead of over the whole sample interval."""
+    J = X0.shape[0]
+    n = X0.shape[1]
+    m = U.shape[1]
+    out = np.empty((J, length, n))
+    z = np.zeros(n + m + q)
+    k1 = np.empty(n)
+    k2 = np.empty(n)
+    k3 = np.empty(n)
+    k4 = np.empty(n)
+    tmp = np.empty(n)
+    x = np.empty(n)
+    for j in range(J):
+        x[:] = X0[j]
+        k0 = starts[j]
+        for i in range(length):
+            k = k0 + i
+            h = (times[k + 1] - times[k]) / substeps
+            for s in range(substeps):
+                z[n : n + m] = U[k * substeps + s]
+                rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
+            out[j, i] = x
+    return out

@@ -16,7 +16,6 @@ from reachconf.conformance.bounds import case_box
 from reachconf.conformance.synthesis import SynthesisOptions, synthesize_W
 from reachconf.conformance.trace import TraceOptions
 from reachconf.diagnose.fit import case_starts, noise_level, transformed_case
-from reachconf.diagnose.options import DiagnoseOptions
 from reachconf.errors import ReachconfError
 from reachconf.io.cases import TestCase, TestSuite
 from reachconf.model.outputs import output_index_of_states
@@ -62,7 +61,7 @@ def decimated_cases(model, fit, cases, k, segment=None, substeps=None):
     small errors build up over many seconds; boxes of short segments (each
     free to start anywhere in the measurement's V) measure what the effect
     changes.  A lag starts each case where it fits it best (:func:`case_starts`,
-    with ``substeps`` RK4 steps per sample, default :class:`DiagnoseOptions`).
+    with ``substeps`` RK4 steps per sample; None: :func:`~reachconf.diagnose.residuals.steps_per_sample`).
     """
     out = []
     memory = any(e.start is not None for e, _ in fit.candidate.inputs)
@@ -70,8 +69,7 @@ def decimated_cases(model, fit, cases, k, segment=None, substeps=None):
         starts = None
         if memory:
             sigma = np.maximum(noise_level(d.Y), 1e-12)
-            steps = DiagnoseOptions().substeps if substeps is None else substeps
-            starts = case_starts(fit.model, fit.candidate, fit.effect_params, d, sigma, steps)[0]
+            starts = case_starts(fit.model, fit.candidate, fit.effect_params, d, sigma, substeps)[0]
         c = transformed_case(model, d.case, fit.candidate, fit.effect_params, starts)
         out += segments_of(c.decimate(k) if k > 1 else c, segment)
     return out
