@@ -123,13 +123,17 @@ def eval_outputs(h, jac_h, X, U, p, n_out, q):
     return Y, J
 
 
-@njit((FN_POINT_VEC, f8_2, types.int64[:], f8_2, f8_1, f8_1, types.int64, types.int64, types.int64), cache=True)
-def rk4_windows(f, X0, starts, U, times, p, q, length, substeps):
+@njit(
+    (FN_POINT_VEC, f8_2, types.int64[:], f8_2, f8_1, f8_1, types.int64, types.int64, types.int64, types.boolean),
+    cache=True,
+)
+def rk4_windows(f, X0, starts, U, times, p, q, length, substeps, per_substep):
     """Multi-step predictions: from ``X0[j]`` at sample ``starts[j]`` over ``length`` sample intervals.
 
-    Inputs ``U[k]`` act on ``[t_k, t_k+1)``, the ``q`` disturbances are zero.  Returns
-    the predicted states at samples ``starts[j] + 1 ... starts[j] + length``,
-    shape (J, length, n); every window must end inside ``times``.
+    Inputs ``U[k]`` act on ``[t_k, t_k+1)``; with ``per_substep``, ``U[k * substeps + s]`` acts on RK4 substep ``s``
+    of that interval (``U`` then has ``substeps`` rows per sample interval, e.g. a lag's output held over each
+    substep instead of over the whole interval).  The ``q`` disturbances are zero.  Returns the predicted states at
+    samples ``starts[j] + 1 ... starts[j] + length``, shape (J, length, n); every window must end inside ``times``.
     """
     J = X0.shape[0]
     n = X0.shape[1]
@@ -147,38 +151,11 @@ def rk4_windows(f, X0, starts, U, times, p, q, length, substeps):
         k0 = starts[j]
         for i in range(length):
             k = k0 + i
-            z[n : n + m] = U[k]
+            z[n : n + m] = U[k * substeps] if per_substep else U[k]
             h = (times[k + 1] - times[k]) / substeps
             for s in range(substeps):
-                rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
-            out[j, i] = x
-    return out
-
-
-@njit((FN_POINT_VEC, f8_2, types.int64[:], f8_2, f8_1, f8_1, types.int64, types.int64, types.int64), cache=True)
-def rk4_windows_substep_inputs(f, X0, starts, U, times, p, q, length, substeps):
-    """:func:`rk4_windows` with an input value per RK4 substep: ``U[k * substeps + s]`` acts on substep ``s`` of
-    ``[t_k, t_k+1)`` (``U`` has ``(len(times) - 1) * substeps + 1`` rows), e.g. a lag's output held over each
-    substep instead of over the whole sample interval."""
-    J = X0.shape[0]
-    n = X0.shape[1]
-    m = U.shape[1]
-    out = np.empty((J, length, n))
-    z = np.zeros(n + m + q)
-    k1 = np.empty(n)
-    k2 = np.empty(n)
-    k3 = np.empty(n)
-    k4 = np.empty(n)
-    tmp = np.empty(n)
-    x = np.empty(n)
-    for j in range(J):
-        x[:] = X0[j]
-        k0 = starts[j]
-        for i in range(length):
-            k = k0 + i
-            h = (times[k + 1] - times[k]) / substeps
-            for s in range(substeps):
-                z[n : n + m] = U[k * substeps + s]
+                if per_substep:
+                    z[n : n + m] = U[k * substeps + s]
                 rk4_step(f, x, z, n, p, h, k1, k2, k3, k4, tmp)
             out[j, i] = x
     return out

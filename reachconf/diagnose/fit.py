@@ -81,6 +81,16 @@ class PreparedCase:
         return int(self.offsets.size)
 
 
+def smoothing_window(options: DiagnoseOptions, dt: float) -> int:
+    """Samples of the Savitzky–Golay window at the sampling interval ``dt``: ``options.smooth``, or fewer (odd, at
+    least 3) where that would span more than ``options.smooth_span`` seconds."""
+    if options.smooth_span is None:
+        return int(options.smooth)
+    n = int(np.floor(options.smooth_span / dt + 1e-9)) + 1
+    n -= 1 - n % 2  # odd
+    return int(max(3, min(options.smooth, n)))
+
+
 def prepare(model, case, options: DiagnoseOptions) -> PreparedCase:
     """A :class:`PreparedCase`: the case's arrays, smoothed outputs and prediction windows."""
     from scipy.signal import savgol_filter
@@ -94,11 +104,12 @@ def prepare(model, case, options: DiagnoseOptions) -> PreparedCase:
     stride = max(int(round(options.stride / dt)), 1)
     if t.size < length + 2:
         raise ConformanceError(f"test case {case.name!r} is shorter than one prediction window ({options.window} s)")
-    win = min(options.smooth, t.size - (1 - t.size % 2))
+    smooth = smoothing_window(options, dt)
+    win = min(smooth, t.size - (1 - t.size % 2))
     Ys = savgol_filter(Y, win, 2, axis=0) if win >= 3 else Y.copy()
     first, lead = 0, 0
     mode = options.start_state
-    M = 2 * options.smooth - 1
+    M = 2 * smooth - 1
     if mode == "auto":  # the "past" extrapolation only over the span where it was validated (DiagnoseOptions)
         mode = "past" if M * dt <= PAST_SPAN_MAX + 1e-9 else "prefix"
     if mode in ("past", "prefix"):

@@ -31,23 +31,26 @@ class DiagnoseOptions:
         Predictions are compared with the measurements every ``compare_step``
         seconds of a window (at least every sample; the integration runs on
         every sample): neighbouring errors of a prediction are nearly equal.
-    substeps : int or None, default 1
+    substeps : int or None, default None
         RK4 steps per sample interval in the predictions; None: enough that
         no step is longer than 0.01 s (one per sample at 100 Hz and above,
         five at 20 Hz; :func:`reachconf.diagnose.residuals.steps_per_sample`).
         With more than one step, a lag's or dead time's output is evaluated
         on every step (held over the step as its mean), not held over the
-        whole sample interval.  On low-rate data that removes the
-        discretisation bias of a sub-sample lag (at 20 Hz a 0.03-s lag came
-        out 5 % short with 1 step; 10 steps recover a 0.04-s lag to 0.1 %
-        on nearly noise-free data), but with the default ``smooth`` the
-        Savitzky–Golay window's own bias is then left uncancelled (on a
-        mass-spring-damper and a pendulum at 20 Hz the estimates rose by
-        0.5 points in the median, the median error from 0.6 % to 1.0 %), and
-        5 of 48 verdicts of that check changed (2 better, 3 worse): not the
-        default (docs/notes/diagnosis.md, "Inputs per substep").
+        whole sample interval: at 20 Hz a 0.03-s lag held per sample came out
+        5 % short with a 95 % interval 2 % wide (docs/notes/diagnosis.md,
+        "Inputs per substep").
     smooth : int, default 11
-        Savitzky–Golay window (samples, quadratic) of smoothed states.
+        Savitzky–Golay window (samples, quadratic) of smoothed states, at
+        most ``smooth_span`` long.
+    smooth_span : float or None, default 0.3
+        Longest span (s) of the Savitzky–Golay window: at a low sample rate
+        the window is the largest odd number of samples (at least 3) whose
+        span ``(n - 1) dt`` is within it (7 at 20 Hz; 11 samples are 0.5 s
+        there and bias the start states of a fast plant).  None: ``smooth``
+        samples at every rate.  Both defaults chosen on first-order plants at
+        20 and 50 Hz (docs/notes/diagnosis.md); at 50 Hz and above the window
+        is ``smooth``.
     start_state : {"prefix", "auto", "past", "centered"}, default "prefix"
         How each prediction window's start state is estimated from the
         measurements.  "prefix": each window is simulated from the centred
@@ -183,8 +186,9 @@ class DiagnoseOptions:
     window: float = 1.0
     stride: float = 1.0
     compare_step: float = 0.05
-    substeps: int | None = 1
+    substeps: int | None = None
     smooth: int = 11
+    smooth_span: float | None = 0.3
     start_state: str = "prefix"
     prior: float = 0.1
     param_bounds: float = 0.5
@@ -208,9 +212,10 @@ class DiagnoseOptions:
 
     def __post_init__(self):
         check_field_types(self)
-        for name in ("window", "stride", "compare_step", "prior", "param_bounds", "box_rate", "box_segment"):
+        for name in ("window", "stride", "compare_step", "prior", "param_bounds", "box_rate", "box_segment",
+                     "smooth_span"):  # fmt: skip
             v = getattr(self, name)
-            if name == "box_rate" and v is None:
+            if name in ("box_rate", "smooth_span") and v is None:
                 continue
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
                 raise OptionsError(f"DiagnoseOptions.{name} must be a positive number, got {v!r}")

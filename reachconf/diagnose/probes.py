@@ -74,7 +74,7 @@ def _simulate(fit, x0, t, U):
     Ue, _ = transformed_signals(model, fit.candidate, fit.effect_params, t, U, np.zeros((t.size, model.p)))
     comp = model.compiled()
     X = rk4_windows(comp.f, np.ascontiguousarray(x0[None, :]), np.zeros(1, dtype=np.int64), np.ascontiguousarray(Ue),
-                    t, model.param_vector, model.q, t.size - 1, 2)[0]  # fmt: skip
+                    t, model.param_vector, model.q, t.size - 1, 2, False)[0]  # fmt: skip
     X = np.vstack([np.asarray(x0, dtype=float)[None, :], X])
     plain = state_index_of_outputs(model)
     Y = X[:, plain] if plain is not None else evaluate_outputs(model, X, Ue)

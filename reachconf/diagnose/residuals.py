@@ -20,7 +20,7 @@ from reachconf.model.outputs import (
     state_estimate,
     state_index_of_outputs,
 )
-from reachconf_kernels.integrate import rk4_windows, rk4_windows_substep_inputs
+from reachconf_kernels.integrate import rk4_windows
 
 __all__ = ["case_starts", "residuals_and_prefix", "received_inputs", "substep_grid", "window_residuals"]
 
@@ -140,7 +140,7 @@ def _batch_residuals(model, comp, pv, direct, plain, outputs, theta_eff, items, 
             shift += stop
         args = (comp.f, np.ascontiguousarray(np.vstack(X0s)), np.concatenate(starts).astype(np.int64),
                 np.ascontiguousarray(np.vstack(Us)), np.ascontiguousarray(np.concatenate(ts)), pv, model.q, length)
-        P = rk4_windows(*args, steps) if per == 1 else rk4_windows_substep_inputs(*args, per)
+        P = rk4_windows(*args, steps, False) if per == 1 else rk4_windows(*args, per, True)
         row = 0
         for i in group:
             d, U, K = items[i]

@@ -1,16 +1,19 @@
-"""Input effects per RK4 substep (``DiagnoseOptions.substeps``) checked on plants it was not chosen on.
+"""The diagnosis at low sample rates, checked on plants its low-rate defaults were not chosen on.
 
-    python examples/diagnose/substep_check.py [--out substep_check.json]
+    python examples/diagnose/low_rate_check.py [--out low_rate_check.json]
 
 A mass-spring-damper and a pendulum, simulated on a 1-kHz grid with the
 recorded command held over each sample interval (delayed for a dead time, a
 lag as a state), sampled at 20 and 50 Hz with 2 % noise: lags of 0.02, 0.04
 and 0.08 s, dead times of 0.03 and 0.06 s and none, two seeds (48 suites).
-Each suite is diagnosed with ``substeps=1`` (the default) and ``substeps=None``
-(steps of at most 0.01 s, the effect on every step); one line per diagnosis:
+Each suite is diagnosed with the defaults before 3 Dec (``substeps=1``: a
+lag's output held over each sample interval; ``smooth_span=None``: an
+11-sample smoothing window at every rate) and with the defaults (RK4 steps of
+at most 0.01 s with the effect on every step, the window at most 0.3 s long;
+both chosen on a DC motor and a tank, other plants); one line per diagnosis:
 status, named effects, the estimate with its 95 % interval, error and whether
-the interval covers the truth.  Results: docs/notes/diagnosis.md, "Inputs per
-substep" (about 3 minutes on one core).
+the interval covers the truth.  Results: docs/notes/diagnosis.md, "Low sample
+rates" (about 4 minutes on one core).
 """
 
 import argparse
@@ -71,7 +74,7 @@ def suite(plant, effect, value, fs, seed, n=6, dur=20.0, noise=0.02):
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default="substep_check.json")
+    ap.add_argument("--out", default="low_rate_check.json")
     args = ap.parse_args()
     jobs = [(plant, effect, value, fs, seed)
             for plant in ("msd", "pend")
@@ -80,17 +83,17 @@ def main() -> int:
     rows = []
     for plant, effect, value, fs, seed in jobs:
         base, s = suite(plant, effect, value, fs, seed)
-        for sub in (1, None):
+        for setting, opts in (("before", {"substeps": 1, "smooth_span": None}), ("default", {})):
             t0 = time.perf_counter()
             rep = rc.diagnose(base, s, effects=["actuator_lag", "dead_time", "input_offset", "input_scale"],
-                              progress=False, workers=1, options=DiagnoseOptions(tube_horizon=0.0, substeps=sub))
+                              progress=False, workers=1, options=DiagnoseOptions(tube_horizon=0.0, **opts))
             named = rep.decision.get("named", [])
             est = iv = None
             for e in named:
                 if e["effect"] == effect:
                     k = list(e["params"])[0]
                     est, iv = e["params"][k], e["interval"][k]
-            row = dict(plant=plant, effect=effect, value=value, fs=fs, seed=seed, sub=sub,
+            row = dict(plant=plant, effect=effect, value=value, fs=fs, seed=seed, setting=setting,
                        status=rep.decision["status"], named=[e["effect"] for e in named], est=est, iv=iv,
                        secs=time.perf_counter() - t0)  # fmt: skip
             rows.append(row)
@@ -98,7 +101,7 @@ def main() -> int:
             if est is not None:
                 what = (f"{est:.4f} [{iv[0]:.4f}, {iv[1]:.4f}] error {100 * (est / value - 1):+.1f} % "
                         f"covered {iv[0] <= value <= iv[1]}")  # fmt: skip
-            print(plant, effect, value, fs, seed, sub, row["status"], row["named"], what, f"{row['secs']:.1f} s",
+            print(plant, effect, value, fs, seed, setting, row["status"], row["named"], what, f"{row['secs']:.1f} s",
                   flush=True)  # fmt: skip
     with open(args.out, "w") as f:
         json.dump(rows, f)

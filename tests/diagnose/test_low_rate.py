@@ -1,15 +1,17 @@
-"""Input effects evaluated on every RK4 substep (``DiagnoseOptions.substeps``): a lag's output moves within a sample
-interval, and held over the whole interval as its mean, a lag shorter than a sample at 20 Hz came out several
-percent short with an interval that excluded the truth (an outside check's DC motor, docs/notes/diagnosis.md)."""
+"""Low sample rates: input effects evaluated on every RK4 substep (``DiagnoseOptions.substeps``) — a lag's output
+moves within a sample interval, and held over the whole interval as its mean, a lag shorter than a sample at 20 Hz
+came out several percent short with an interval that excluded the truth (an outside check's DC motor) — and a
+smoothing window at most ``smooth_span`` seconds long (docs/notes/diagnosis.md, "Low sample rates")."""
 
 import numpy as np
 import pytest
 
 import reachconf as rc
 from reachconf.diagnose import EFFECTS, DiagnoseOptions
+from reachconf.diagnose.fit import smoothing_window
 from reachconf.diagnose.residuals import steps_per_sample, substep_grid
 from reachconf.model.simulate import simulate
-from reachconf_kernels.integrate import rk4_windows, rk4_windows_substep_inputs
+from reachconf_kernels.integrate import rk4_windows
 from reachconf_kernels.signals import first_order_lag
 
 
@@ -34,8 +36,8 @@ def test_substep_inputs_equal_the_per_sample_kernel_for_held_inputs_and_follow_a
     for m in (1, 3, 5):
         t_sub, U_sub = substep_grid(t, u[:, None], m)
         assert t_sub.size == (t.size - 1) * m + 1 and t_sub[-1] == t[-1] and np.all(np.diff(t_sub) > 0)
-        a = rk4_windows(comp.f, X0, starts, np.ascontiguousarray(u[:, None]), t, pv, model.q, 15, m)
-        b = rk4_windows_substep_inputs(comp.f, X0, starts, np.ascontiguousarray(U_sub), t, pv, model.q, 15, m)
+        a = rk4_windows(comp.f, X0, starts, np.ascontiguousarray(u[:, None]), t, pv, model.q, 15, m, False)
+        b = rk4_windows(comp.f, X0, starts, np.ascontiguousarray(U_sub), t, pv, model.q, 15, m, True)
         np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12)  # held inputs: the same arithmetic
     # a 0.03-s lag's output per substep: the windows converge to the plant with the lag as a state
     plant = EFFECTS["actuator_lag"].apply_model(model, "V", (0.03,))
@@ -43,8 +45,8 @@ def test_substep_inputs_equal_the_per_sample_kernel_for_held_inputs_and_follow_a
     for m in (1, 2, 8):
         t_sub, U_sub = substep_grid(t, u[:, None], m)
         lagged = first_order_lag(t_sub, np.ascontiguousarray(U_sub[:, 0]), 0.03)[:, None]
-        P = rk4_windows_substep_inputs(comp.f, X0[:1], np.zeros(1, dtype=np.int64), np.ascontiguousarray(lagged), t,
-                                       pv, model.q, t.size - 1, m)  # fmt: skip
+        P = rk4_windows(comp.f, X0[:1], np.zeros(1, dtype=np.int64), np.ascontiguousarray(lagged), t, pv, model.q,
+                        t.size - 1, m, True)  # fmt: skip
         X = simulate(plant, [X0[0, 0], u[0]], t, inputs=u[:, None], substeps=200)[1:, :1]
         errs.append(float(np.max(np.abs(P[0] - X))))
     assert errs[2] < errs[1] < errs[0] and errs[2] < 0.1 * errs[0], errs
@@ -57,9 +59,20 @@ def test_steps_per_sample_is_the_option_or_enough_for_steps_of_at_most_10_ms():
 
     assert steps_per_sample(3, D(20.0)) == 3
     assert [steps_per_sample(None, D(fs)) for fs in (200.0, 100.0, 50.0, 20.0, 8.0)] == [1, 1, 2, 5, 13]
-    assert DiagnoseOptions().substeps == 1 and DiagnoseOptions(substeps=None).substeps is None
+    assert DiagnoseOptions().substeps is None and DiagnoseOptions(substeps=1).substeps == 1
     with pytest.raises(rc.OptionsError, match="substeps"):
         DiagnoseOptions(substeps=0)
+
+
+def test_the_smoothing_window_is_at_most_smooth_span_seconds_long():
+    o = DiagnoseOptions()
+    assert [smoothing_window(o, 1 / fs) for fs in (10.0, 20.0, 25.0, 40.0, 50.0, 100.0, 1000.0)] == [3, 7, 7, 11, 11,
+                                                                                                   11, 11]  # fmt: skip
+    assert smoothing_window(DiagnoseOptions(smooth_span=None), 0.05) == 11
+    assert smoothing_window(DiagnoseOptions(smooth=5, smooth_span=10.0), 0.05) == 5
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(rc.OptionsError, match="smooth_span"):
+            DiagnoseOptions(smooth_span=bad)
 
 
 def _suite(seed, fs=20.0, tau=0.03, n=6, noise=0.0005):
