@@ -151,7 +151,8 @@ def rk4_windows(f, X0, starts, U, times, p, q, length, substeps, per_substep):
         k0 = starts[j]
         for i in range(length):
             k = k0 + i
-            z[n : n + m] = U[k * substeps] if per_substep else U[k]
+            if not per_substep:
+                z[n : n + m] = U[k]
             h = (times[k + 1] - times[k]) / substeps
             for s in range(substeps):
                 if per_substep:

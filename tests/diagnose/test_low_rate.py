@@ -9,7 +9,8 @@ import pytest
 import reachconf as rc
 from reachconf.diagnose import EFFECTS, DiagnoseOptions
 from reachconf.diagnose.fit import smoothing_window
-from reachconf.diagnose.residuals import steps_per_sample, substep_grid
+from reachconf.conformance.optctrl import fine_grid
+from reachconf.diagnose.residuals import steps_per_sample
 from reachconf.model.simulate import simulate
 from reachconf_kernels.integrate import rk4_windows
 from reachconf_kernels.signals import first_order_lag
@@ -34,7 +35,7 @@ def test_substep_inputs_equal_the_per_sample_kernel_for_held_inputs_and_follow_a
     X0 = rng.uniform(0, 8, size=(5, 1))
     starts = np.array([0, 7, 20, 41, 60], dtype=np.int64)
     for m in (1, 3, 5):
-        t_sub, U_sub = substep_grid(t, u[:, None], m)
+        t_sub, U_sub, _ = fine_grid(t, u[:, None], m)
         assert t_sub.size == (t.size - 1) * m + 1 and t_sub[-1] == t[-1] and np.all(np.diff(t_sub) > 0)
         a = rk4_windows(comp.f, X0, starts, np.ascontiguousarray(u[:, None]), t, pv, model.q, 15, m, False)
         b = rk4_windows(comp.f, X0, starts, np.ascontiguousarray(U_sub), t, pv, model.q, 15, m, True)
@@ -43,7 +44,7 @@ def test_substep_inputs_equal_the_per_sample_kernel_for_held_inputs_and_follow_a
     plant = EFFECTS["actuator_lag"].apply_model(model, "V", (0.03,))
     errs = []
     for m in (1, 2, 8):
-        t_sub, U_sub = substep_grid(t, u[:, None], m)
+        t_sub, U_sub, _ = fine_grid(t, u[:, None], m)
         lagged = first_order_lag(t_sub, np.ascontiguousarray(U_sub[:, 0]), 0.03)[:, None]
         P = rk4_windows(comp.f, X0[:1], np.zeros(1, dtype=np.int64), np.ascontiguousarray(lagged), t, pv, model.q,
                         t.size - 1, m, True)  # fmt: skip
@@ -60,8 +61,9 @@ def test_steps_per_sample_is_the_option_or_enough_for_steps_of_at_most_10_ms():
     assert steps_per_sample(3, D(20.0)) == 3
     assert [steps_per_sample(None, D(fs)) for fs in (200.0, 100.0, 50.0, 20.0, 8.0)] == [1, 1, 2, 5, 13]
     assert DiagnoseOptions().substeps is None and DiagnoseOptions(substeps=1).substeps == 1
-    with pytest.raises(rc.OptionsError, match="substeps"):
-        DiagnoseOptions(substeps=0)
+    for bad in (0, -2, 2.5, "5", True):
+        with pytest.raises(rc.OptionsError, match="substeps"):
+            DiagnoseOptions(substeps=bad)
 
 
 def test_the_smoothing_window_is_at_most_smooth_span_seconds_long():
