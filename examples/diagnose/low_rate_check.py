@@ -44,8 +44,10 @@ def pendulum():
 PLANTS = {"msd": (msd, "F", (0.0, 0.0), 8.0, 6.0), "pend": (pendulum, "u", (0.3, 0.0), 2.0, 2.0)}
 
 
-def suite(plant, effect, value, fs, seed, n=6, dur=20.0, noise=0.02):
-    """``n`` runs of random holds (0.1-0.5 s) through the plant with the withheld ``effect`` (or None)."""
+def suite(plant, effect, value, fs, seed, n=6, dur=20.0, noise=0.02, controller="sampled"):
+    """``n`` runs of random holds (0.1-0.5 s) through the plant with the withheld ``effect`` (or None); the
+    commands change at the samples (``controller="sampled"``: a controller at the log's rate) or at any
+    millisecond (``"fast"``: the log keeps every ``1000 / fs``-th command of a 1-kHz controller)."""
     make, inp, x0, mean, amp = PLANTS[plant]
     base = make()
     rng = np.random.default_rng(seed)
@@ -56,8 +58,13 @@ def suite(plant, effect, value, fs, seed, n=6, dur=20.0, noise=0.02):
     cases = []
     for i in range(n):
         holds = rng.uniform(0.1, 0.5, size=400).cumsum()
-        u = mean + amp * rng.uniform(-1, 1, size=holds.size)[np.searchsorted(holds, t)]
-        u_f = u[np.minimum(np.floor(tf * fs + 1e-9).astype(int), t.size - 1)]  # held over each sample interval
+        levels = mean + amp * rng.uniform(-1, 1, size=holds.size)
+        if controller == "sampled":
+            u = levels[np.searchsorted(holds, t)]
+            u_f = u[np.minimum(np.floor(tf * fs + 1e-9).astype(int), t.size - 1)]  # held over each sample interval
+        else:
+            u_f = levels[np.searchsorted(holds, tf)]
+            u = u_f[::every]
         if effect == "dead_time":
             shift = int(round(value * ff))
             u_f = np.concatenate([np.full(shift, u_f[0]), u_f[: tf.size - shift]])
@@ -72,6 +79,28 @@ def suite(plant, effect, value, fs, seed, n=6, dur=20.0, noise=0.02):
     return base, rc.TestSuite(cases)
 
 
+def diagnosed(base, s, effect, value, opts, **keys) -> dict:
+    """Diagnose the suite ``s`` with the options ``opts``; print and return its row (``keys`` first): status, named
+    effects, the withheld effect's estimate and 95 % interval."""
+    t0 = time.perf_counter()
+    rep = rc.diagnose(base, s, effects=["actuator_lag", "dead_time", "input_offset", "input_scale"],
+                      progress=False, workers=1, options=DiagnoseOptions(tube_horizon=0.0, **opts))
+    named = rep.decision.get("named", [])
+    est = iv = None
+    for e in named:
+        if e["effect"] == effect:
+            k = list(e["params"])[0]
+            est, iv = e["params"][k], e["interval"][k]
+    row = dict(keys, effect=effect, value=value, status=rep.decision["status"], named=[e["effect"] for e in named],
+               est=est, iv=iv, secs=time.perf_counter() - t0)  # fmt: skip
+    what = ""
+    if est is not None:
+        what = (f"{est:.4f} [{iv[0]:.4f}, {iv[1]:.4f}] error {100 * (est / value - 1):+.1f} % "
+                f"covered {iv[0] <= value <= iv[1]}")  # fmt: skip
+    print(*keys.values(), effect, value, row["status"], row["named"], what, f"{row['secs']:.1f} s", flush=True)
+    return row
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="low_rate_check.json")
@@ -84,25 +113,7 @@ def main() -> int:
     for plant, effect, value, fs, seed in jobs:
         base, s = suite(plant, effect, value, fs, seed)
         for setting, opts in (("before", {"substeps": 1, "smooth_span": None}), ("default", {})):
-            t0 = time.perf_counter()
-            rep = rc.diagnose(base, s, effects=["actuator_lag", "dead_time", "input_offset", "input_scale"],
-                              progress=False, workers=1, options=DiagnoseOptions(tube_horizon=0.0, **opts))
-            named = rep.decision.get("named", [])
-            est = iv = None
-            for e in named:
-                if e["effect"] == effect:
-                    k = list(e["params"])[0]
-                    est, iv = e["params"][k], e["interval"][k]
-            row = dict(plant=plant, effect=effect, value=value, fs=fs, seed=seed, setting=setting,
-                       status=rep.decision["status"], named=[e["effect"] for e in named], est=est, iv=iv,
-                       secs=time.perf_counter() - t0)  # fmt: skip
-            rows.append(row)
-            what = ""
-            if est is not None:
-                what = (f"{est:.4f} [{iv[0]:.4f}, {iv[1]:.4f}] error {100 * (est / value - 1):+.1f} % "
-                        f"covered {iv[0] <= value <= iv[1]}")  # fmt: skip
-            print(plant, effect, value, fs, seed, setting, row["status"], row["named"], what, f"{row['secs']:.1f} s",
-                  flush=True)  # fmt: skip
+            rows.append(diagnosed(base, s, effect, value, opts, plant=plant, fs=fs, seed=seed, setting=setting))
     with open(args.out, "w") as f:
         json.dump(rows, f)
     return 0

@@ -75,6 +75,7 @@ class PreparedCase:
     weight: float = 1.0  # multiplies the case's normalised residuals (``loss_scale = "case"``)
     prefix_Y: np.ndarray | None = None  # compared samples before the first window, when ``Y`` holds only the windows'
     dt: float | None = None  # median sampling interval (s)
+    hold: str = "zero"  # how the inputs move between samples (``DiagnoseOptions.input_hold``)
 
     @property
     def per_window(self) -> int:
@@ -126,7 +127,7 @@ def prepare(model, case, options: DiagnoseOptions) -> PreparedCase:
     idx = (starts[:, None] + offsets[None, :]).reshape(-1)
     starts, offsets = starts - lead, offsets + lead  # each window simulated from `lead` samples before its start
     return PreparedCase(case.name, getattr(case, "group", "default"), t, U, Y, Ys, starts, length + lead, case,
-                        offsets, idx, dt=dt)  # fmt: skip
+                        offsets, idx, dt=dt, hold=options.input_hold)  # fmt: skip
 
 
 @dataclass(frozen=True)

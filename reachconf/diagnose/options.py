@@ -9,7 +9,7 @@ import numpy as np
 from reachconf.checks import check_field_types
 from reachconf.errors import OptionsError
 
-__all__ = ["DiagnoseOptions", "INTERVAL_METHODS", "LOSS_SCALES", "PAST_SPAN_MAX"]
+__all__ = ["DiagnoseOptions", "INPUT_HOLDS", "INTERVAL_METHODS", "LOSS_SCALES", "PAST_SPAN_MAX"]
 
 
 @dataclass(frozen=True)
@@ -40,6 +40,22 @@ class DiagnoseOptions:
         whole sample interval: at 20 Hz a 0.03-s lag held per sample came out
         5 % short with a 95 % interval 2 % wide (docs/notes/diagnosis.md,
         "Inputs per substep").
+    input_hold : {"zero", "linear"}, default "zero"
+        What the inputs did between their samples.  "zero": each recorded
+        input was held until the next sample (the sampled-data assumption of
+        Alg. 2 and of a controller that runs at the log's rate).  "linear":
+        the input moved linearly from one sample to the next (a first-order
+        hold: for logs that sample the commands of a faster controller, or a
+        continuous signal); the predictions then take the ramp's mean over
+        every RK4 step.  The data cannot tell the two apart when a timing
+        effect is fitted (a hold shifts the commands by about half a sample,
+        which a lag or a dead time absorbs), so it is an option, not a fit:
+        on a log decimated to 20 Hz from a 100-Hz controller "zero" gives
+        timing effects about 0.02 s short (docs/notes/diagnosis.md, "How the
+        inputs were held").  At 100 Hz and above the two differ by at most
+        half a sample.  The hold applies to the predictions that choose and
+        fit the effects; the minimal W boxes of "how far" use Alg. 2's
+        sampled-data inputs either way.
     smooth : int, default 11
         Savitzky–Golay window (samples, quadratic) of smoothed states, at
         most ``smooth_span`` long.
@@ -187,6 +203,7 @@ class DiagnoseOptions:
     stride: float = 1.0
     compare_step: float = 0.05
     substeps: int | None = None
+    input_hold: str = "zero"
     smooth: int = 11
     smooth_span: float | None = 0.3
     start_state: str = "prefix"
@@ -247,6 +264,8 @@ class DiagnoseOptions:
         if self.start_state not in ("auto", "past", "centered", "prefix"):
             raise OptionsError(f"DiagnoseOptions.start_state must be 'auto', 'past', 'prefix' or 'centered', got "
                                f"{self.start_state!r}")  # fmt: skip
+        if self.input_hold not in INPUT_HOLDS:
+            raise OptionsError(f"DiagnoseOptions.input_hold must be one of {INPUT_HOLDS}, got {self.input_hold!r}")
         if self.interval_method not in INTERVAL_METHODS:
             raise OptionsError(f"DiagnoseOptions.interval_method must be one of {INTERVAL_METHODS}, "
                                f"got {self.interval_method!r}")  # fmt: skip
@@ -264,6 +283,8 @@ class DiagnoseOptions:
 PAST_SPAN_MAX = 0.25
 #: parameter interval methods (:attr:`DiagnoseOptions.interval_method`)
 INTERVAL_METHODS = ("spread", "case", "group")
+#: how the inputs are taken to move between their samples (``DiagnoseOptions.input_hold``)
+INPUT_HOLDS = ("zero", "linear")
 #: per-channel scales of the prediction loss (:attr:`DiagnoseOptions.loss_scale`)
 LOSS_SCALES = ("sensor", "residual", "case")
 #: what a model is scored by against a reference run (:attr:`DiagnoseOptions.reference_loss`)

@@ -428,6 +428,8 @@ def diagnose(model, suite, effects="all", holdout: float = 0.5, fit_params=True,
                                    "held_out_loss": None, "prediction_gain": None, "z_vs_base": None,
                                    "admissible": False, "screen_cost": f.train_cost})  # fmt: skip
     record = decision_record(decision, named, alternatives, options)
+    record["input_hold"] = options.input_hold  # the timing effects' estimates assume it (report.timing_hold_note)
+    record["sample_interval"] = float(np.median([d.dt for d in prepared]))
     if change is not None:
         record["reference"] = change
     best_entry = ranked_entries[0] if ranked_entries else None

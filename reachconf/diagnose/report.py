@@ -127,6 +127,9 @@ class GapReport(JsonResult):
                     lines.append(f"| {e['effect']} | {e['target']} | {p} | {_f(v, '.4g')} | {_f(e['params_std'][p], '.2g')} | "
                                  f"[{_f(lo, '.4g')}, {_f(hi, '.4g')}] |")  # fmt: skip
             lines.append("")
+            note = timing_hold_note(dec)
+            if note:
+                lines += [note, ""]
         for a in dec.get("alternatives", []):
             lines.append(f"- Indistinguishable from **{a['label']}** (held-out z = {_f(a['z'], '.1f')})"
                          + _separating_text(a.get("separating")))
@@ -295,3 +298,24 @@ def _separating_text(sep) -> str:
     if sep["probe"] is None:
         return f"; no probe maneuver separates them (at most {_f(sep['separation'], '.2g')} noise std)"
     return f"; separating maneuver: {sep['probe']['text']} ({_f(sep['separation'], '.1f')} noise std)"
+
+
+def timing_hold_note(decision) -> str:
+    """A sentence for named timing effects (parameters in seconds: a lag, a dead time): their estimates assume how
+    the inputs moved between samples (``DiagnoseOptions.input_hold``), which the data cannot tell (the other hold
+    shifts the commands by about half a sample interval); empty when nothing timed is named or the hold is unknown."""
+    from reachconf.diagnose.effects import EFFECTS
+
+    hold, dt = decision.get("input_hold"), decision.get("sample_interval")
+    timed = [f"{e['effect']}({e['target']})" for e in decision.get("named", [])
+             if "s" in (getattr(EFFECTS.get(e["effect"]), "units", None) or ())]  # fmt: skip
+    if not timed or hold is None or dt is None:
+        return ""
+    if hold == "zero":
+        how, other, sign = "each input was held until its next sample", "linear", "longer"
+    else:
+        how, other, sign = "each input moved linearly to its next sample", "zero", "shorter"
+    return (f"Timing: the estimate of {', '.join(timed)} assumes that {how} (input_hold=\"{hold}\"). If the log "
+            f"{'samples a faster controller or a continuous command' if hold == 'zero' else 'holds the commands of a controller that ran at its rate'}, "
+            f"input_hold=\"{other}\" gives it about half a sample interval ({_f(dt / 2, '.3g')} s) {sign}"
+            + ("." if hold == "zero" else " (a dead time of about that size may be the hold alone)."))  # fmt: skip

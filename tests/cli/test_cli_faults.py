@@ -458,6 +458,7 @@ def test_an_empty_out_is_refused(capsys, monkeypatch, run_file, tmp_path):
     ('reference = "ref\\u0000"', "[diagnose]: reference: 'ref\\x00' is not a usable folder name"),
     ("smooth_span = -0.1", "smooth_span must be a positive number, got -0.1"),
     ("substeps = 0", "substeps must be a positive integer, got 0"),
+    ('input_hold = "cubic"', "input_hold must be one of ('zero', 'linear'), got 'cubic'"),
 ])
 def test_diagnose_settings_are_named_with_the_run_file(capsys, monkeypatch, run_file, table, needle):
     patch(monkeypatch, WORK["diagnose"], no_work)

@@ -10,7 +10,8 @@ import reachconf as rc
 from reachconf.diagnose import EFFECTS, DiagnoseOptions
 from reachconf.diagnose.fit import smoothing_window
 from reachconf.conformance.optctrl import fine_grid
-from reachconf.diagnose.residuals import steps_per_sample
+from reachconf.diagnose.report import timing_hold_note
+from reachconf.diagnose.residuals import ramp_grid, steps_per_sample
 from reachconf.model.simulate import simulate
 from reachconf_kernels.integrate import rk4_windows
 from reachconf_kernels.signals import first_order_lag
@@ -102,3 +103,54 @@ def test_a_sub_sample_lag_at_20_hz_is_recovered_with_inputs_per_substep():
         taus[sub] = named[0]["params"]["tau"]
     assert abs(taus[10] / 0.03 - 1) < 0.01, taus  # per substep: the truth
     assert taus[1] < 0.03 * 0.98, taus  # held per sample: short by more than 2 %
+
+
+def test_ramp_grid_holds_the_linear_inputs_mean_over_every_step():
+    t = np.array([0.0, 0.05, 0.1, 0.2])
+    U = np.column_stack([1 + 2 * t, 3 - t**2])
+    for r in (1, 2, 5):
+        tf, Uf = ramp_grid(t, U, r)
+        t_ref, _, _ = fine_grid(t, U, r)
+        np.testing.assert_allclose(tf, t_ref)
+        assert Uf.shape == ((t.size - 1) * r + 1, 2) and np.array_equal(Uf[-1], U[-1])
+        mid = (tf[:-1] + tf[1:]) / 2
+        np.testing.assert_allclose(Uf[:-1, 0], 1 + 2 * mid, rtol=1e-12)  # a ramp: its value at the step's midpoint
+        for k in range(t.size - 1):  # within an interval the second input moves linearly from sample to sample
+            rows = Uf[k * r : (k + 1) * r, 1]
+            np.testing.assert_allclose(rows, U[k, 1] + (np.arange(r) + 0.5) / r * (U[k + 1, 1] - U[k, 1]))
+    assert DiagnoseOptions().input_hold == "zero" and DiagnoseOptions(input_hold="linear").input_hold == "linear"
+    for bad in ("first", "", None):
+        with pytest.raises(rc.OptionsError, match="input_hold"):
+            DiagnoseOptions(input_hold=bad)
+
+
+def _decimated_suite(seed, tau=0.05, fs=20.0, n=6, noise=0.0005):
+    """Commands of a 1-kHz controller (holds at random instants, not at the samples) through a 0.05-s lag, the
+    states and the commands recorded at 20 Hz: every 50th sample of each."""
+    base = _motor()
+    rng = np.random.default_rng(seed)
+    plant = EFFECTS["actuator_lag"].apply_model(base, "V", (tau,))
+    tf = np.round(np.arange(0, 20.0 + 1e-9, 1e-3), 10)
+    every = int(round(1000 / fs))
+    cases = []
+    for i in range(n):
+        uf = _held(tf, tf.size, rng)
+        X = simulate(plant, [6.0, uf[0]], tf, inputs=uf[:, None], substeps=2)[::every, :1]
+        cases.append(rc.TestCase(f"c{i}", f"g{i % 3}", tf[::every], uf[::every, None],
+                                 X + rng.normal(size=X.shape) * noise, ("V",), ("om",)))  # fmt: skip
+    return base, rc.TestSuite(cases)
+
+
+def test_a_log_decimated_from_a_faster_controller_needs_the_linear_hold():
+    base, suite = _decimated_suite(0)
+    taus = {}
+    for hold in ("zero", "linear"):
+        rep = rc.diagnose(base, suite, effects=["actuator_lag", "dead_time"], progress=False, workers=1,
+                          options=DiagnoseOptions(tube_horizon=0.0, input_hold=hold))  # fmt: skip
+        named = rep.decision["named"]
+        assert [e["effect"] for e in named] == ["actuator_lag"], rep.verdict
+        taus[hold] = named[0]["params"]["tau"]
+        note = timing_hold_note(rep.decision)
+        assert f'input_hold="{hold}"' in note and "0.025 s" in note and note in rep.summary()
+    assert taus["zero"] < 0.04, taus  # the commands taken half a sample late: the lag about half a sample short
+    assert abs(taus["linear"] / 0.05 - 1) < 0.08, taus
