@@ -11,8 +11,8 @@ every 50th: ``"linear"`` is the closer assumption).  Withheld: a lag of 0.04 or
 0.08 s, a dead time of 0.06 s, or none; two seeds (32 suites), each diagnosed
 with both holds.  One line per diagnosis: status, named effects, the estimate
 with its 95 % interval, its error and whether the interval covers the truth.
-Results: docs/notes/diagnosis.md, "How the inputs were held" (about 5 minutes
-on one core).
+Results: docs/notes/diagnosis.md, "How the inputs were held" (about 4 s per
+diagnosis on a free core with warm caches: 5 minutes).
 """
 
 import argparse
