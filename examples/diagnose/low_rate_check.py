@@ -110,6 +110,8 @@ def main() -> int:
                     help="only this rate (Hz) with the defaults: lags 0.04, 0.08, 0.15 s, dead times 0.06, 0.12 s "
                          "and none, seeds 31 and 32 (the 10-Hz check: --rate 10)")  # fmt: skip
     args = ap.parse_args()
+    if args.rate is not None and not (args.rate > 0 and args.rate <= 1000):  # the plants are simulated at 1 kHz
+        ap.error(f"--rate must be in (0, 1000] Hz, got {args.rate:g}")
     if args.rate is not None:
         rows = []
         for plant in ("msd", "pend"):

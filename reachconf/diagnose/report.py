@@ -312,10 +312,11 @@ def timing_hold_note(decision) -> str:
     if not timed or hold is None or dt is None:
         return ""
     if hold == "zero":
-        how, other, sign = "each input was held until its next sample", "linear", "longer"
+        how, log, other, shift = ("each input was held until its next sample",
+                                  "samples a faster controller or a continuous command", "linear", "longer.")
     else:
-        how, other, sign = "each input moved linearly to its next sample", "zero", "shorter"
+        how, log, other, shift = ("each input moved linearly to its next sample",
+                                  "holds the commands of a controller that ran at its rate", "zero",
+                                  "shorter (a dead time of about that size may be the hold alone).")
     return (f"Timing: the estimate of {', '.join(timed)} assumes that {how} (input_hold=\"{hold}\"). If the log "
-            f"{'samples a faster controller or a continuous command' if hold == 'zero' else 'holds the commands of a controller that ran at its rate'}, "
-            f"input_hold=\"{other}\" gives it about half a sample interval ({_f(dt / 2, '.3g')} s) {sign}"
-            + ("." if hold == "zero" else " (a dead time of about that size may be the hold alone)."))  # fmt: skip
+            f"{log}, input_hold=\"{other}\" gives it about half a sample interval ({_f(dt / 2, '.3g')} s) {shift}")
