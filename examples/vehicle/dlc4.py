@@ -1,4 +1,8 @@
-"""Why DLC_4 has no verified W_RC,Mnvr in Table 6: a measured diagnosis of the failing reach.
+"""Why DLC_4's trace box ``W_opt`` cannot be reached: a measured diagnosis of the failing reach.
+
+(Table 6's DLC_4 row is verified since 3 Dec 2026 with α < 1 — the α-search bisects below a failed
+reach, ``SynthesisOptions.alpha_below_failed_reach`` — but ``W_opt`` itself, α = 1, still explodes:
+this script measures why, and what a reach that kept it would need.)
 
     python examples/vehicle/dlc4.py --campaign DIR/campaign [--runs DLC_4_5,DLC_4_1]
                                     [--steering rate_limited] [--samples 100] [--out FILE.json]

@@ -22,7 +22,7 @@ def scaled_box(c, g, alpha) -> Interval:
     return Interval(c - alpha * g, c + alpha * g)
 
 
-def alpha_search(check, W: Interval, iterations: int = 10, alpha_max: float = 1.0):
+def alpha_search(check, W: Interval, iterations: int = 10, alpha_max: float = 1.0, below_failed_reach: bool = False):
     """Binary search (eq. 68) for the smallest α with ``check(c + α g)`` true.
 
     ``check(Interval)`` returns a bool, a :class:`~reachconf.verdict.Verdict` or a result with a ``verdict``;
@@ -30,9 +30,18 @@ def alpha_search(check, W: Interval, iterations: int = 10, alpha_max: float = 1.
     doubled up to ``alpha_max`` (see :class:`~reachconf.conformance.synthesis.SynthesisOptions`) — but not
     after an *undecided* check (the reach failed: a larger box cannot make it succeed).  The
     bisection then runs between the largest failing and the smallest
-    conformant α (``[0, 1]`` when α = 1 passes).  Returns ``(alpha, box,
-    conformant, trials)``; if no α up to ``alpha_max`` passes, ``conformant``
-    is False and α is the last one tried.
+    conformant α (``[0, 1]`` when α = 1 passes).
+
+    ``below_failed_reach``: when a check is undecided before any α passed, bisect (at most
+    ``iterations`` checks) between the largest α whose check was not conformant (0 at first) and the
+    undecided one: a check that passes opens a *window* (its box is small enough for the reach and
+    the reach still contains the measurements), which the bisection then narrows as above; an
+    undecided check moves the upper end down, a not conformant one the lower end up.  Reachset
+    conformance (eq. 43) is a property of the computed over-approximation, so it is not monotone in
+    α where the reach is near failing: the window can be narrow, and is not searched for by default.
+
+    Returns ``(alpha, box, conformant, trials)``; if no α passes, ``conformant``
+    is False and α is the last one tried (with ``below_failed_reach``: the first undecided one).
     """
     c, g = W.center, W.radius
     trials = []
@@ -41,6 +50,12 @@ def alpha_search(check, W: Interval, iterations: int = 10, alpha_max: float = 1.
         ok, undecided = _outcome(check(scaled_box(c, g, hi)))
         trials.append((hi, ok))
         if ok:
+            break
+        if undecided and below_failed_reach:
+            window = _window(check, c, g, lo, hi, iterations, trials)
+            if window is None:
+                return hi, scaled_box(c, g, hi), False, trials
+            lo, hi = window
             break
         if hi >= alpha_max or undecided:
             return hi, scaled_box(c, g, hi), False, trials
@@ -54,6 +69,21 @@ def alpha_search(check, W: Interval, iterations: int = 10, alpha_max: float = 1.
         else:
             lo = mid
     return hi, scaled_box(c, g, hi), True, trials
+
+
+def _window(check, c, g, lo, hi, iterations, trials):
+    """``(lo, α)`` with ``check`` passing at α in ``(lo, hi)`` (``lo`` not conformant, ``hi`` undecided), or None."""
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        ok, undecided = _outcome(check(scaled_box(c, g, mid)))
+        trials.append((mid, ok))
+        if ok:
+            return lo, mid
+        if undecided:
+            hi = mid
+        else:
+            lo = mid
+    return None
 
 
 def _outcome(result) -> tuple[bool, bool]:

@@ -38,6 +38,10 @@ def _conformant(verdict) -> bool:
 def merge_group(model, members, Vbox, options, pool, batch=1, stop=None, step=None):
     """``W_RC,Mnvr`` of one group: the α-search on the hull of its cases' ``W_RC`` over all of them.
 
+    When that fails and some but not all cases are conformant alone (and
+    ``options.alpha_below_failed_reach``), the search is repeated on the hull
+    of those cases' ``W_RC``; the box must still pass every case.
+
     Parameters
     ----------
     members : list of (TestCase, CaseSynthesis)
@@ -79,7 +83,14 @@ def merge_group(model, members, Vbox, options, pool, batch=1, stop=None, step=No
         return Verdict.CONFORMANT
 
     iterations = options.merge_iterations or options.alpha_iterations
-    alpha, W, ok, _ = alpha_search(check, hull, iterations, options.alpha_max)
+    below = options.alpha_below_failed_reach
+    alpha, W, ok, _ = alpha_search(check, hull, iterations, options.alpha_max, below)
+    alone = [cs for _, cs in members if cs.conformant]
+    if not ok and below and 0 < len(alone) < len(members):
+        # a case that is not conformant alone has no W_RC (its box is the trace box of a failed search) and can
+        # widen the hull beyond any reach: the hull of the cases conformant alone, still checked on every case
+        hull = Interval(np.min([cs.W_RC.lo for cs in alone], axis=0), np.max([cs.W_RC.hi for cs in alone], axis=0))
+        alpha, W, ok, _ = alpha_search(check, hull, iterations, options.alpha_max, below)
     verdict = Verdict.CONFORMANT if ok else (Verdict.NOT_CONFORMANT if Verdict.NOT_CONFORMANT in failed
                                              else Verdict.UNDECIDED)  # fmt: skip
     return W, alpha, ok, time.perf_counter() - t0, verdict

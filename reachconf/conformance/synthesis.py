@@ -61,6 +61,17 @@ class SynthesisOptions:
         between the last failing and the first conformant α.  Every returned
         box is verified by reachability whatever α is; ``1.0`` gives eq. 68
         exactly.
+    alpha_below_failed_reach : bool, default True
+        When the reach fails (undecided) at a tried α before any α passed —
+        at α = 1, or while α is doubled — bisect below it for an α that
+        passes (:func:`~reachconf.conformance.alpha.alpha_search`): a smaller
+        box keeps the reach from exploding, and reachset conformance (eq. 43)
+        holds for the computed over-approximation, which can contain every
+        measurement where ``W_opt`` itself could not be reached (eq. 68
+        searches α in [0, 1]).  The merge then also tries, when the hull of
+        all its cases' boxes fails, the hull of those conformant alone.
+        Every box returned is still verified on every case.  False: the
+        search stops at the failed reach (as until 3 Dec 2026).
     optimize : bool, default True
         Run step 2; if False, step 3 starts from ``W_TC``.
     step2_decimate : int, default 1
@@ -98,6 +109,7 @@ class SynthesisOptions:
     alpha_iterations: int = 10
     merge_iterations: int | None = None
     alpha_max: float = 4.0
+    alpha_below_failed_reach: bool = True
     optimize: bool = True
     step2_decimate: int = 1
     merge: bool = True
@@ -359,24 +371,34 @@ def _synth_case(job) -> CaseSynthesis:
         if scale_of is not None and np.allclose(W.lo, scale_of.lo) and np.allclose(W.hi, scale_of.hi):
             at_one.setdefault("res", res)
         at_one["last"] = res
+        if res.verdict is Verdict.UNDECIDED:
+            at_one.setdefault("undecided", res)
         return res.verdict
 
+    below = options.alpha_below_failed_reach
     alpha, W_RC, ok, trials = alpha_search(lambda W: check(W, W_opt), W_opt, options.alpha_iterations,
-                                           options.alpha_max)  # fmt: skip
+                                           options.alpha_max, below)  # fmt: skip
     if ok and alpha > 1.0:
         message = f"W_opt was not reachset conformant; enlarged by alpha = {alpha:.4g}"
+    elif ok and "undecided" in at_one:
+        message = f"the reach failed at a larger alpha; conformant below it, at alpha = {alpha:.4g}"
     if not ok and options.optimize and W_opt is not W_TC:
         # W_opt is only trace conformant on the samples step 2 saw (and the initial set of eq. 67 differs
         # from the trace's x0): fall back to the search on the hull of step 1's and step 2's boxes
         hull = Interval(np.minimum(W_TC.lo, W_opt.lo), np.maximum(W_TC.hi, W_opt.hi))
-        alpha2, W2, ok2, trials2 = alpha_search(check, hull, options.alpha_iterations, options.alpha_max)
+        alpha2, W2, ok2, trials2 = alpha_search(check, hull, options.alpha_iterations, options.alpha_max, below)
         trials += [("W_TC hull", True)] + trials2
         if ok2:
             alpha, W_RC, ok = alpha2, W2, True
             message = "W_opt was not reachset conformant; alpha scales the hull of W_TC and W_opt"
-    verdict = Verdict.CONFORMANT if ok else at_one["last"].verdict
+    # a failed search that met a failed reach is undecided, even if its last (smaller) α missed a measurement
+    failed_reach = at_one.get("undecided")
+    verdict = Verdict.CONFORMANT if ok else (Verdict.UNDECIDED if failed_reach is not None else at_one["last"].verdict)
     if not ok and verdict is Verdict.UNDECIDED:
-        message = f"undecided: the reach failed at the largest α tried ({alpha:g}): {at_one['last'].message}"
+        message = f"undecided: the reach failed at the largest α tried ({alpha:g}): {failed_reach.message}"
+        smallest = min(a for a, _ in trials if not isinstance(a, str))
+        if smallest < alpha:
+            message += f"; no smaller α passed (down to {smallest:.3g}: failed reaches or measurements outside)"
     elif not ok:
         res = at_one["res"]
         message = res.message or (f"not reachset conformant up to α = {options.alpha_max:g} (at α = 1 first "
