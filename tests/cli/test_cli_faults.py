@@ -231,6 +231,8 @@ def test_locked_json_file(capsys, monkeypatch, run_file, tmp_path):
         ('model = "bicycle_closed_loop"', 'model = "os.path:join"', "model 'os.path:join': calling it"),
         ("time_step = 0.02", 'time_step = "fast"', "[reach] time_step must be a number or None, got 'fast'"),
         ("alpha_iterations = 10", 'alpha_iterations = "ten"', "[synthesis] alpha_iterations must be an integer"),
+        ("alpha_iterations = 10", 'alpha_iterations = 10\nalpha_below_failed_reach = "yes"',
+         "[synthesis] alpha_below_failed_reach must be true or false"),
         ('suite = "suite"', 'suite = "suite"\ndiagnose = 5', "[diagnose] must be a table, got 5"),
         ("[-0.02, 0.02]", "[-0.02, true]", "sets.V: must be a list of [lo, hi] pairs of numbers"),
     ],

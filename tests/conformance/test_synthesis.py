@@ -199,7 +199,7 @@ def test_alpha_search_brackets_the_smallest_conformant_alpha(needed, alpha_max, 
 
 @pytest.mark.parametrize("bad", [{"alpha_max": 0.5}, {"alpha_max": float("inf")}, {"alpha_max": float("nan")},
                                  {"merge_iterations": 0}, {"merge_iterations": 2.5}, {"reach": "fast"},
-                                 {"reach_fallback": {"tensor_order": 3}}])  # fmt: skip
+                                 {"reach_fallback": {"tensor_order": 3}}, {"alpha_below_failed_reach": "yes"}])  # fmt: skip
 def test_bad_synthesis_options_raise(bad):
     with pytest.raises(rc.OptionsError, match=next(iter(bad))):
         SynthesisOptions(**bad)
