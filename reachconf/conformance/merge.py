@@ -35,6 +35,11 @@ def _conformant(verdict) -> bool:
     return Verdict(verdict) is Verdict.CONFORMANT
 
 
+def _hull(syntheses) -> Interval:
+    """The interval hull of the cases' ``W_RC``."""
+    return Interval(np.min([cs.W_RC.lo for cs in syntheses], axis=0), np.max([cs.W_RC.hi for cs in syntheses], axis=0))
+
+
 def merge_group(model, members, Vbox, options, pool, batch=1, stop=None, step=None):
     """``W_RC,Mnvr`` of one group: the α-search on the hull of its cases' ``W_RC`` over all of them.
 
@@ -60,8 +65,7 @@ def merge_group(model, members, Vbox, options, pool, batch=1, stop=None, step=No
         reaches failed there.
     """
     t0 = time.perf_counter()
-    hull = Interval(np.min([cs.W_RC.lo for _, cs in members], axis=0),
-                    np.max([cs.W_RC.hi for _, cs in members], axis=0))  # fmt: skip
+    hull = _hull([cs for _, cs in members])
     # the member most likely to fail is checked first and a check stops at the first failure
     order = sorted(range(len(members)), key=lambda j: (members[j][1].conformant, -members[j][1].alpha))
 
@@ -89,8 +93,7 @@ def merge_group(model, members, Vbox, options, pool, batch=1, stop=None, step=No
     if not ok and below and 0 < len(alone) < len(members):
         # a case that is not conformant alone has no W_RC (its box is the trace box of a failed search) and can
         # widen the hull beyond any reach: the hull of the cases conformant alone, still checked on every case
-        hull = Interval(np.min([cs.W_RC.lo for cs in alone], axis=0), np.max([cs.W_RC.hi for cs in alone], axis=0))
-        alpha, W, ok, _ = alpha_search(check, hull, iterations, options.alpha_max, below)
+        alpha, W, ok, _ = alpha_search(check, _hull(alone), iterations, options.alpha_max, below)
     verdict = Verdict.CONFORMANT if ok else (Verdict.NOT_CONFORMANT if Verdict.NOT_CONFORMANT in failed
                                              else Verdict.UNDECIDED)  # fmt: skip
     return W, alpha, ok, time.perf_counter() - t0, verdict
